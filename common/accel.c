@@ -1,0 +1,2 @@
+/* accel.c: not written yet. */
+typedef int pf_placeholder_accel;

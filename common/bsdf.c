@@ -1,0 +1,2 @@
+/* bsdf.c: not written yet. */
+typedef int pf_placeholder_bsdf;

@@ -1,0 +1,2 @@
+/* camera.c: not written yet. */
+typedef int pf_placeholder_camera;

@@ -1,0 +1,2 @@
+/* image.c: not written yet. */
+typedef int pf_placeholder_image;

@@ -1,0 +1,2 @@
+/* kdtree.c: not written yet. */
+typedef int pf_placeholder_kdtree;

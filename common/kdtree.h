@@ -1,0 +1,60 @@
+/* kdtree.h: static, balanced, pointer-free kd-tree over photons, with
+ * k-nearest and radius queries.
+ *
+ * Layout: the photons are reordered so that the node of the index range
+ * [lo, hi) is its median m = lo + (hi - lo) / 2, split on axis[m]; the left
+ * child is [lo, m), the right [m + 1, hi). No pointers, one byte of split axis
+ * per photon. The build is deterministic: the split axis is the widest extent
+ * of the range, and equal coordinates are ordered by the photons' input index,
+ * so the same input always gives the same layout, whatever the thread count.
+ *
+ * Queries are read-only and safe from any number of threads at once. */
+#ifndef PF_KDTREE_H
+#define PF_KDTREE_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "common/photon.h"
+#include "common/vec.h"
+
+typedef struct pf_kdtree pf_kdtree_t;
+
+/* One query result: the photon's index in tree order and its squared distance. */
+typedef struct pf_knn {
+    uint32_t index;
+    float d2;
+} pf_knn_t;
+
+/* Builds a tree over n photons, taking ownership of *photons_p (malloc'd;
+ * *photons_p is set to NULL, also on failure). n may be 0. NULL when out of
+ * memory or n >= 2^31. */
+pf_kdtree_t *pf_kdtree_build(pf_photon_t **photons_p, size_t n);
+
+/* Rebuilds a tree from an existing layout (photons already in tree order and
+ * their split axes), e.g. one received over the wire; takes ownership of both
+ * arrays. Checks that every axis is 0..2, every position is finite and that
+ * the layout satisfies the kd-tree ordering; NULL (arrays freed) otherwise. */
+pf_kdtree_t *pf_kdtree_from_layout(pf_photon_t **photons_p, uint8_t **axes_p, size_t n);
+
+/* NULL-safe; sets *self_p = NULL. */
+void pf_kdtree_destroy(pf_kdtree_t **self_p);
+
+size_t pf_kdtree_size(const pf_kdtree_t *self);
+/* The photons in tree order, and their split axes (n bytes). */
+const pf_photon_t *pf_kdtree_photons(const pf_kdtree_t *self);
+const uint8_t *pf_kdtree_axes(const pf_kdtree_t *self);
+/* Bounds of all photon positions (lo > hi on an empty tree). */
+void pf_kdtree_bounds(const pf_kdtree_t *self, pf_vec3 *lo, pf_vec3 *hi);
+
+/* The k nearest photons to x within squared distance max_r2 (use INFINITY for
+ * none). Writes at most k results to out sorted by (d2, index) ascending and
+ * returns how many. Ties at equal distance go to the lower tree index, so the
+ * result is a pure function of the tree and the query. */
+size_t pf_kdtree_knn(const pf_kdtree_t *self, pf_vec3 x, size_t k, float max_r2, pf_knn_t *out);
+
+/* All photons with squared distance <= r2 from x: writes up to cap of them to
+ * out (in no particular order) and returns how many there are in total. */
+size_t pf_kdtree_radius(const pf_kdtree_t *self, pf_vec3 x, float r2, pf_knn_t *out, size_t cap);
+
+#endif

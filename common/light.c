@@ -1,0 +1,2 @@
+/* light.c: not written yet. */
+typedef int pf_placeholder_light;

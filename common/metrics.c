@@ -1,0 +1,2 @@
+/* metrics.c: not written yet. */
+typedef int pf_placeholder_metrics;

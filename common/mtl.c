@@ -1,0 +1,2 @@
+/* mtl.c: not written yet. */
+typedef int pf_placeholder_mtl;

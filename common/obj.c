@@ -1,0 +1,2 @@
+/* obj.c: not written yet. */
+typedef int pf_placeholder_obj;

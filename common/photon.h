@@ -1,0 +1,59 @@
+/* photon.h: the compact photon record stored in photon maps and sent to
+ * workers, with octahedral unit-vector encoding (Cigolle et al. 2014).
+ * The same record holds a precomputed-irradiance point: power then carries
+ * irradiance (W/m^2) and dir is unused. 32 bytes, no padding. */
+#ifndef PF_PHOTON_H
+#define PF_PHOTON_H
+
+#include <math.h>
+#include <stdint.h>
+
+#include "common/vec.h"
+
+typedef struct pf_photon {
+    float pos[3];
+    float power[3];   /* flux, W per channel (or irradiance, see above) */
+    uint32_t dir;     /* direction the photon travelled, octahedral 16+16 bits */
+    uint32_t normal;  /* surface normal on the side the photon arrived from */
+} pf_photon_t;
+
+_Static_assert(sizeof(pf_photon_t) == 32, "pf_photon_t must stay 32 bytes");
+
+static inline pf_vec3 pf_photon_pos(const pf_photon_t *p) { return pf_v3(p->pos[0], p->pos[1], p->pos[2]); }
+static inline pf_vec3 pf_photon_power(const pf_photon_t *p) { return pf_v3(p->power[0], p->power[1], p->power[2]); }
+
+static inline float pf_oct_sign(float v) { return v >= 0.0f ? 1.0f : -1.0f; }
+
+/* Unit vector to 16+16 bit octahedral code. Worst-case angular error ~3e-5 rad. */
+static inline uint32_t pf_oct_encode(pf_vec3 v)
+{
+    float l1 = fabsf(v.x) + fabsf(v.y) + fabsf(v.z);
+    if (!(l1 > 0.0f))
+        return 0x7fff7fffu;
+    float x = v.x / l1, y = v.y / l1;
+    if (v.z < 0.0f) {
+        float tx = (1.0f - fabsf(y)) * pf_oct_sign(x);
+        float ty = (1.0f - fabsf(x)) * pf_oct_sign(y);
+        x = tx;
+        y = ty;
+    }
+    uint32_t ux = (uint32_t)lrintf((fminf(fmaxf(x, -1.0f), 1.0f) * 0.5f + 0.5f) * 65535.0f);
+    uint32_t uy = (uint32_t)lrintf((fminf(fmaxf(y, -1.0f), 1.0f) * 0.5f + 0.5f) * 65535.0f);
+    return ux | (uy << 16);
+}
+
+static inline pf_vec3 pf_oct_decode(uint32_t code)
+{
+    float x = (float)(code & 0xffffu) / 65535.0f * 2.0f - 1.0f;
+    float y = (float)(code >> 16) / 65535.0f * 2.0f - 1.0f;
+    float z = 1.0f - fabsf(x) - fabsf(y);
+    if (z < 0.0f) {
+        float tx = (1.0f - fabsf(y)) * pf_oct_sign(x);
+        float ty = (1.0f - fabsf(x)) * pf_oct_sign(y);
+        x = tx;
+        y = ty;
+    }
+    return pf_norm(pf_v3(x, y, z));
+}
+
+#endif

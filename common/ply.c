@@ -1,0 +1,2 @@
+/* ply.c: not written yet. */
+typedef int pf_placeholder_ply;

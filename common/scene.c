@@ -1,0 +1,316 @@
+/* scene.c: the scene model's builder verbs, validation and the loader
+ * dispatch by file extension. Single-threaded: scenes are built once, then
+ * read by every rendering thread without locks. */
+#include "common/scene.h"
+
+#include <float.h>
+#include <stdlib.h>
+#include <stdio.h>
+#include <string.h>
+#include <strings.h>
+
+#include "common/log.h"
+
+pf_settings_t pf_settings_default(void)
+{
+    return (pf_settings_t){
+        .width = 512,
+        .height = 512,
+        .spp = 4,
+        .photons = 400000,
+        .caustic_photons = 400000,
+        .gather = 64,
+        .light_samples = 2,
+        .max_depth = 16,
+        .photon_max_depth = 64,
+        .global_k = 100,
+        .caustic_k = 80,
+        .caustic_radius = 0.0f,
+        .global_radius = 0.0f,
+        .irradiance_stride = 4,
+        .threads = 0,
+        .seed = 1,
+        .exposure = 0.0f,
+    };
+}
+
+pf_material_t pf_material_default(const char *name)
+{
+    pf_material_t m;
+    memset(&m, 0, sizeof m);
+    snprintf(m.name, sizeof m.name, "%s", name ? name : "default");
+    m.type = PF_MAT_DIFFUSE;
+    m.kd = pf_v3s(0.8f);
+    m.ns = 1.0f;
+    m.ior = 1.5f;
+    m.kt = pf_v3s(1.0f);
+    return m;
+}
+
+pf_scene_t *pf_scene_create(void)
+{
+    pf_scene_t *self = calloc(1, sizeof *self);
+    if (!self)
+        return NULL;
+    self->settings = pf_settings_default();
+    return self;
+}
+
+void pf_mesh_free(pf_mesh_t *mesh)
+{
+    if (!mesh)
+        return;
+    free(mesh->pos);
+    free(mesh->nrm);
+    free(mesh->idx);
+    free(mesh->mat);
+    memset(mesh, 0, sizeof *mesh);
+}
+
+void pf_scene_destroy(pf_scene_t **self_p)
+{
+    if (!self_p || !*self_p)
+        return;
+    pf_scene_t *self = *self_p;
+    for (size_t i = 0; i < self->nmeshes; i++)
+        pf_mesh_free(&self->meshes[i]);
+    free(self->meshes);
+    free(self->mats);
+    free(self->spheres);
+    free(self->lights);
+    free(self);
+    *self_p = NULL;
+}
+
+/* Grows a dynamic array to hold one more element. */
+static int s_grow(void **arr, size_t *cap, size_t n, size_t elem)
+{
+    if (n < *cap)
+        return PF_OK;
+    size_t ncap = *cap ? *cap * 2 : 8;
+    void *p = realloc(*arr, ncap * elem);
+    if (!p)
+        return PF_ENOMEM;
+    *arr = p;
+    *cap = ncap;
+    return PF_OK;
+}
+
+int pf_scene_add_material(pf_scene_t *self, const pf_material_t *mat)
+{
+    if (s_grow((void **)&self->mats, &self->cap_mats, self->nmats, sizeof *mat))
+        return PF_ENOMEM;
+    self->mats[self->nmats] = *mat;
+    return (int)self->nmats++;
+}
+
+int pf_scene_find_material(const pf_scene_t *self, const char *name)
+{
+    for (size_t i = self->nmats; i-- > 0;)
+        if (strcmp(self->mats[i].name, name) == 0)
+            return (int)i;
+    return -1;
+}
+
+int pf_scene_add_mesh(pf_scene_t *self, pf_mesh_t *mesh)
+{
+    if (s_grow((void **)&self->meshes, &self->cap_meshes, self->nmeshes, sizeof *mesh))
+        return PF_ENOMEM;
+    self->meshes[self->nmeshes++] = *mesh;
+    memset(mesh, 0, sizeof *mesh);
+    return PF_OK;
+}
+
+int pf_scene_add_sphere(pf_scene_t *self, const pf_sphere_t *sphere)
+{
+    if (s_grow((void **)&self->spheres, &self->cap_spheres, self->nspheres, sizeof *sphere))
+        return PF_ENOMEM;
+    self->spheres[self->nspheres++] = *sphere;
+    return PF_OK;
+}
+
+int pf_scene_add_light(pf_scene_t *self, const pf_light_t *light)
+{
+    if (s_grow((void **)&self->lights, &self->cap_lights, self->nlights, sizeof *light))
+        return PF_ENOMEM;
+    self->lights[self->nlights++] = *light;
+    return PF_OK;
+}
+
+void pf_scene_bounds(const pf_scene_t *self, pf_vec3 *lo, pf_vec3 *hi)
+{
+    pf_vec3 a = pf_v3s(FLT_MAX), b = pf_v3s(-FLT_MAX);
+    for (size_t m = 0; m < self->nmeshes; m++) {
+        const pf_mesh_t *mesh = &self->meshes[m];
+        for (size_t i = 0; i < mesh->nverts; i++) {
+            a = pf_vmin(a, mesh->pos[i]);
+            b = pf_vmax(b, mesh->pos[i]);
+        }
+    }
+    for (size_t s = 0; s < self->nspheres; s++) {
+        const pf_sphere_t *sp = &self->spheres[s];
+        a = pf_vmin(a, pf_sub(sp->center, pf_v3s(sp->radius)));
+        b = pf_vmax(b, pf_add(sp->center, pf_v3s(sp->radius)));
+    }
+    for (size_t l = 0; l < self->nlights; l++) {
+        a = pf_vmin(a, self->lights[l].pos);
+        b = pf_vmax(b, self->lights[l].pos);
+    }
+    *lo = a;
+    *hi = b;
+}
+
+static int s_mat_finite(const pf_material_t *m)
+{
+    return pf_is_finite3(m->kd) && pf_is_finite3(m->ks) && pf_is_finite3(m->kt) && pf_is_finite3(m->le) &&
+           isfinite(m->ns) && isfinite(m->ior);
+}
+
+/* Removes zero-area and non-finite triangles from a mesh; returns how many. */
+static size_t s_drop_degenerate(pf_mesh_t *mesh)
+{
+    size_t kept = 0;
+    for (size_t t = 0; t < mesh->ntris; t++) {
+        const uint32_t *v = &mesh->idx[3 * t];
+        pf_vec3 p0 = mesh->pos[v[0]], p1 = mesh->pos[v[1]], p2 = mesh->pos[v[2]];
+        pf_vec3 n = pf_cross(pf_sub(p1, p0), pf_sub(p2, p0));
+        float a2 = pf_len2(n);
+        if (!(a2 > 0.0f) || !isfinite(a2) || !pf_is_finite3(p0) || !pf_is_finite3(p1) || !pf_is_finite3(p2))
+            continue;
+        if (kept != t) {
+            memmove(&mesh->idx[3 * kept], v, 3 * sizeof *v);
+            mesh->mat[kept] = mesh->mat[t];
+        }
+        kept++;
+    }
+    size_t dropped = mesh->ntris - kept;
+    mesh->ntris = kept;
+    return dropped;
+}
+
+/* Frames the geometry: looks at the bounds' centre from +z, far enough that
+ * the bounding sphere fits the vertical field of view. */
+static void s_frame_camera(pf_scene_t *self)
+{
+    pf_vec3 lo, hi;
+    pf_scene_bounds(self, &lo, &hi);
+    pf_vec3 c = pf_scale(pf_add(lo, hi), 0.5f);
+    float r = 0.5f * pf_len(pf_sub(hi, lo));
+    if (!(r > 0.0f) || !isfinite(r))
+        r = 1.0f;
+    float fov = 40.0f;
+    float dist = r / sinf(0.5f * fov * PF_PI / 180.0f);
+    self->camera = (pf_camera_desc_t){ .pos = pf_add(c, pf_v3(0, 0, dist)), .look_at = c, .up = pf_v3(0, 1, 0), .vfov_deg = fov };
+    self->has_camera = 1;
+}
+
+int pf_scene_finalize(pf_scene_t *self, pf_error_t *err)
+{
+    const char *file = self->path[0] ? self->path : "scene";
+    for (size_t i = 0; i < self->nmats; i++) {
+        const pf_material_t *m = &self->mats[i];
+        if (!s_mat_finite(m))
+            return pf_error_set(err, PF_EPARSE, file, 0, "material '%s' has a non-finite value", m->name);
+        if (m->type == PF_MAT_GLASS && !(m->ior > 0.0f))
+            return pf_error_set(err, PF_EPARSE, file, 0, "material '%s': index of refraction must be > 0", m->name);
+    }
+    size_t dropped = 0, ntris = 0;
+    for (size_t mi = 0; mi < self->nmeshes; mi++) {
+        pf_mesh_t *mesh = &self->meshes[mi];
+        for (size_t t = 0; t < mesh->ntris; t++) {
+            for (int k = 0; k < 3; k++)
+                if (mesh->idx[3 * t + k] >= mesh->nverts)
+                    return pf_error_set(err, PF_EPARSE, file, 0, "mesh '%s': vertex index out of range", mesh->name);
+            if (mesh->mat[t] >= self->nmats)
+                return pf_error_set(err, PF_EPARSE, file, 0, "mesh '%s': material index out of range", mesh->name);
+        }
+        if (mesh->nrm) {
+            for (size_t v = 0; v < mesh->nverts; v++) {
+                pf_vec3 n = mesh->nrm[v];
+                float l = pf_len(n);
+                mesh->nrm[v] = (l > 0.0f && isfinite(l)) ? pf_scale(n, 1.0f / l) : pf_v3(0, 0, 0);
+            }
+        }
+        dropped += s_drop_degenerate(mesh);
+        ntris += mesh->ntris;
+    }
+    if (dropped)
+        pf_warn("%s: skipped %zu degenerate triangle%s (zero area or non-finite vertices)", file, dropped,
+                dropped == 1 ? "" : "s");
+    for (size_t s = 0; s < self->nspheres; s++) {
+        const pf_sphere_t *sp = &self->spheres[s];
+        if (!pf_is_finite3(sp->center) || !(sp->radius > 0.0f) || !isfinite(sp->radius))
+            return pf_error_set(err, PF_EPARSE, file, 0, "sphere %zu: centre must be finite and radius > 0", s);
+        if (sp->mat >= self->nmats)
+            return pf_error_set(err, PF_EPARSE, file, 0, "sphere %zu: material index out of range", s);
+        if (!pf_is_black(self->mats[sp->mat].le))
+            return pf_error_set(err, PF_EUNSUPPORTED, file, 0,
+                                "sphere %zu: emissive spheres are not supported; use an emissive mesh", s);
+    }
+    int emitters = (int)self->nlights;
+    for (size_t mi = 0; mi < self->nmeshes && !emitters; mi++)
+        for (size_t t = 0; t < self->meshes[mi].ntris && !emitters; t++)
+            emitters = !pf_is_black(self->mats[self->meshes[mi].mat[t]].le);
+    if (ntris == 0 && self->nspheres == 0)
+        return pf_error_set(err, PF_EPARSE, file, 0, "the scene has no geometry");
+    if (!emitters)
+        return pf_error_set(err, PF_EPARSE, file, 0,
+                            "the scene has no light: give a material an emission (Ke) or add a point or spot light");
+    if (!self->has_camera)
+        s_frame_camera(self);
+    const pf_camera_desc_t *c = &self->camera;
+    if (!pf_is_finite3(c->pos) || !pf_is_finite3(c->look_at) || !pf_is_finite3(c->up) || !(c->vfov_deg > 0.0f) ||
+        !(c->vfov_deg < 180.0f) || !(pf_len2(pf_sub(c->look_at, c->pos)) > 0.0f) ||
+        !(pf_len2(pf_cross(pf_sub(c->look_at, c->pos), c->up)) > 0.0f))
+        return pf_error_set(err, PF_EPARSE, file, 0,
+                            "bad camera: position and look-at must differ, up must not be parallel to the view, "
+                            "field of view in (0, 180)");
+    return PF_OK;
+}
+
+static const char *s_ext(const char *path)
+{
+    const char *dot = strrchr(path, '.');
+    const char *slash = strrchr(path, '/');
+    return (dot && (!slash || dot > slash)) ? dot + 1 : "";
+}
+
+pf_scene_t *pf_scene_load(const char *path, pf_error_t *err)
+{
+    pf_scene_t *scene = pf_scene_create();
+    if (!scene) {
+        pf_error_set(err, PF_ENOMEM, path, 0, "out of memory");
+        return NULL;
+    }
+    snprintf(scene->path, sizeof scene->path, "%s", path);
+    const char *ext = s_ext(path);
+    int rc;
+    if (strcasecmp(ext, "json") == 0) {
+        rc = pf_scene_json_load(scene, path, err);
+    } else if (strcasecmp(ext, "obj") == 0) {
+        rc = pf_obj_load(scene, path, NULL, -1, err);
+    } else if (strcasecmp(ext, "ply") == 0) {
+        pf_material_t m = pf_material_default("default");
+        int mi = pf_scene_add_material(scene, &m);
+        rc = mi < 0 ? mi : pf_ply_load(scene, path, NULL, (uint32_t)mi, err);
+        if (rc == PF_OK && scene->nlights == 0) {
+            /* A bare mesh has no light: add a point light at the default camera. */
+            pf_vec3 lo, hi;
+            pf_scene_bounds(scene, &lo, &hi);
+            float r = pf_len(pf_sub(hi, lo));
+            pf_light_t l = { .type = PF_LIGHT_POINT,
+                             .pos = pf_add(pf_scale(pf_add(lo, hi), 0.5f), pf_v3(0.5f * r, r, 1.5f * r)),
+                             .intensity = pf_v3s(r * r) };
+            rc = pf_scene_add_light(scene, &l);
+        }
+    } else {
+        rc = pf_error_set(err, PF_EUNSUPPORTED, path, 0, "unknown scene type '.%s' (expected .json, .obj or .ply)", ext);
+    }
+    if (rc == PF_OK)
+        rc = pf_scene_finalize(scene, err);
+    if (rc != PF_OK) {
+        pf_scene_destroy(&scene);
+        return NULL;
+    }
+    return scene;
+}

@@ -1,0 +1,2 @@
+/* scene_json.c: not written yet. */
+typedef int pf_placeholder_scene_json;
