@@ -1,0 +1,100 @@
+/* photonmap.c: density estimates over photon maps; see photonmap.h. Pure
+ * functions of the maps and the query, safe from any thread. Sums run in
+ * double in the order the kd-tree returns photons, so results are
+ * reproducible bit for bit. */
+#include "common/photonmap.h"
+
+#include <string.h>
+
+#include "common/bsdf.h"
+#include "common/photon.h"
+
+void pf_photon_maps_free(pf_photon_maps_t *maps)
+{
+    if (!maps)
+        return;
+    pf_kdtree_destroy(&maps->global);
+    pf_kdtree_destroy(&maps->caustic);
+    pf_kdtree_destroy(&maps->irradiance);
+    memset(maps, 0, sizeof *maps);
+}
+
+/* Gathers up to k photons; returns the count and the disc radius squared. */
+static size_t s_gather(const pf_kdtree_t *map, pf_vec3 x, int k, float max_r2, pf_knn_t *scratch, float *r2)
+{
+    if (!map || pf_kdtree_size(map) == 0 || k <= 0)
+        return 0;
+    if (k > PF_MAX_K)
+        k = PF_MAX_K;
+    size_t n = pf_kdtree_knn(map, x, (size_t)k, max_r2, scratch);
+    *r2 = (n == (size_t)k) ? scratch[n - 1].d2 : max_r2;
+    return n;
+}
+
+pf_vec3 pf_pm_irradiance(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int k, float max_r2, pf_knn_t *scratch)
+{
+    float r2 = 0.0f;
+    size_t cnt = s_gather(map, x, k, max_r2, scratch, &r2);
+    if (cnt == 0 || !(r2 > 0.0f))
+        return pf_v3s(0.0f);
+    const pf_photon_t *ph = pf_kdtree_photons(map);
+    double s[3] = { 0, 0, 0 };
+    for (size_t i = 0; i < cnt; i++) {
+        const pf_photon_t *p = &ph[scratch[i].index];
+        if (pf_dot(pf_oct_decode(p->normal), n) < PF_NORMAL_AGREE)
+            continue;
+        s[0] += p->power[0];
+        s[1] += p->power[1];
+        s[2] += p->power[2];
+    }
+    double inv = 1.0 / (PF_PI * (double)r2);
+    return pf_v3((float)(s[0] * inv), (float)(s[1] * inv), (float)(s[2] * inv));
+}
+
+pf_vec3 pf_pm_irradiance_cone(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int k, float max_r2, pf_knn_t *scratch)
+{
+    float r2 = 0.0f;
+    size_t cnt = s_gather(map, x, k, max_r2, scratch, &r2);
+    if (cnt == 0 || !(r2 > 0.0f))
+        return pf_v3s(0.0f);
+    const pf_photon_t *ph = pf_kdtree_photons(map);
+    double r = sqrt((double)r2);
+    double s[3] = { 0, 0, 0 };
+    for (size_t i = 0; i < cnt; i++) {
+        const pf_photon_t *p = &ph[scratch[i].index];
+        if (pf_dot(pf_oct_decode(p->normal), n) < PF_NORMAL_AGREE)
+            continue;
+        double w = 1.0 - sqrt((double)scratch[i].d2) / r;
+        if (w <= 0.0)
+            continue;
+        s[0] += w * p->power[0];
+        s[1] += w * p->power[1];
+        s[2] += w * p->power[2];
+    }
+    /* The cone of height 1 over the disc holds pi r^2 / 3; normalize to the disc. */
+    double inv = 3.0 / (PF_PI * (double)r2);
+    return pf_v3((float)(s[0] * inv), (float)(s[1] * inv), (float)(s[2] * inv));
+}
+
+pf_vec3 pf_pm_radiance(const pf_kdtree_t *map, const struct pf_material *m, pf_vec3 x, pf_vec3 n, pf_vec3 wo, int k,
+                       float max_r2, pf_knn_t *scratch)
+{
+    float r2 = 0.0f;
+    size_t cnt = s_gather(map, x, k, max_r2, scratch, &r2);
+    if (cnt == 0 || !(r2 > 0.0f))
+        return pf_v3s(0.0f);
+    const pf_photon_t *ph = pf_kdtree_photons(map);
+    double s[3] = { 0, 0, 0 };
+    for (size_t i = 0; i < cnt; i++) {
+        const pf_photon_t *p = &ph[scratch[i].index];
+        if (pf_dot(pf_oct_decode(p->normal), n) < PF_NORMAL_AGREE)
+            continue;
+        pf_vec3 wi = pf_neg(pf_oct_decode(p->dir));
+        pf_vec3 f = pf_brdf_eval(m, n, wi, wo);
+        s[0] += f.x * p->power[0];
+        s[1] += f.y * p->power[1];
+        s[2] += f.z * p->power[2];
+    }
+    double inv = 1.0 / (PF_PI * (double)r2);
+    return pf_v3((float)(s[0] * inv), (float)(s[1] * inv), (float)(s[2] * inv));
+}

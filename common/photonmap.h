@@ -1,0 +1,49 @@
+/* photonmap.h: the photon maps one render uses, as the coordinator builds
+ * them and a worker receives them: the global map, the caustic map and the
+ * precomputed-irradiance map (Christensen 1999), each a pointer-free kd-tree,
+ * with the parameters their estimates need. Owned as a unit. */
+#ifndef PF_PHOTONMAP_H
+#define PF_PHOTONMAP_H
+
+#include <stdint.h>
+
+#include "common/kdtree.h"
+
+typedef struct pf_photon_maps {
+    pf_kdtree_t *global;      /* photons on non-specular surfaces, any path; flux already divided by emitted count */
+    pf_kdtree_t *caustic;     /* photons of L S+ D paths */
+    pf_kdtree_t *irradiance;  /* irradiance (in power[]) at a subset of global photons */
+    uint64_t global_emitted, caustic_emitted;
+    float global_r2;          /* max squared search radius of global estimates */
+    float caustic_r2;         /* max squared search radius of caustic estimates */
+    float irradiance_r2;      /* max squared distance to an irradiance point */
+} pf_photon_maps_t;
+
+/* Frees the trees; NULL-safe; leaves the struct zeroed. */
+void pf_photon_maps_free(pf_photon_maps_t *maps);
+
+/* Photons whose stored normal has a cosine below this with the query normal
+ * lie on another surface (or the other side) and are left out of estimates. */
+#define PF_NORMAL_AGREE 0.7f
+/* Most photons one estimate may gather (bounds the caller's scratch). */
+#define PF_MAX_K 1024
+
+/* Irradiance (W/m^2) at x on the surface with unit normal n: the flux of the
+ * k nearest photons within max_r2 whose normals agree, over the disc pi r^2,
+ * r the distance to the k-th photon (or sqrt(max_r2) when fewer are found).
+ * scratch holds k entries; k <= PF_MAX_K. */
+pf_vec3 pf_pm_irradiance(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int k, float max_r2, pf_knn_t *scratch);
+
+/* The same with a cone filter (Jensen 2001, 7.2.2, k = 1): weight
+ * 1 - d / r, normalized by 1 - 2 / 3 over the disc, which sharpens caustics. */
+pf_vec3 pf_pm_irradiance_cone(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int k, float max_r2, pf_knn_t *scratch);
+
+/* Reflected radiance towards wo at x for a DIFFUSE material with a Phong
+ * lobe, from the photons' directions (Jensen's original estimate): sum of
+ * f(wi_p, wo) flux_p / (pi r^2). Used where precomputed irradiance cannot
+ * represent the reflection (glossy surfaces). */
+struct pf_material;
+pf_vec3 pf_pm_radiance(const pf_kdtree_t *map, const struct pf_material *m, pf_vec3 x, pf_vec3 n, pf_vec3 wo, int k,
+                       float max_r2, pf_knn_t *scratch);
+
+#endif

@@ -1,0 +1,26 @@
+/* job.h: one render job in this process: load nothing, own nothing from the
+ * caller; build the Embree structure, run the photon pass, render the tiles
+ * and return the image with a summary. The farm (issue 3) splits the same
+ * steps between coordinator and workers. */
+#ifndef PF_JOB_H
+#define PF_JOB_H
+
+#include "common/image.h"
+#include "common/scene.h"
+#include "coordinator/photon_trace.h"
+#include "worker/render.h"
+
+typedef struct pf_job_summary {
+    pf_photon_stats_t photons;
+    double accel_s, render_s, total_s;
+    int threads;
+    size_t bad_pixels; /* non-finite or negative channels in the result (must stay 0) */
+} pf_job_summary_t;
+
+/* Renders scene with settings (size, threads, photons, ...) and terms (a
+ * PF_TERM_* mask) into *img (allocated here). show_progress draws a progress
+ * bar on stderr. 0 or a status with err filled. */
+int pf_job_render_local(const pf_scene_t *scene, const pf_settings_t *settings, unsigned terms, int show_progress,
+                        pf_image_t *img, pf_job_summary_t *summary, pf_error_t *err);
+
+#endif

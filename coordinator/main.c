@@ -1,0 +1,282 @@
+/* main.c: the photonfarm command line: `render` (in-process for now; the farm
+ * of workers arrives with issue 3) and `compare`. Exit codes: 0 success,
+ * 1 render failure, 2 usage error, 3 unreadable or malformed input,
+ * 4 image sizes do not fit (compare). */
+#include <errno.h>
+#include <getopt.h>
+#include <inttypes.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "common/image.h"
+#include "common/log.h"
+#include "common/scene.h"
+#include "coordinator/compare.h"
+#include "coordinator/job.h"
+
+enum { EXIT_RENDER = 1, EXIT_USAGE = 2, EXIT_INPUT = 3 };
+
+static void s_usage(FILE *f)
+{
+    fprintf(f,
+            "photonfarm %s (%s): a distributed photon-mapping renderer\n"
+            "\n"
+            "usage:\n"
+            "  photonfarm render SCENE [-o out.png] [--hdr out.pfm] [options]\n"
+            "  photonfarm compare IMAGE.pfm REFERENCE.pfm [--json]\n"
+            "  photonfarm --help | --version\n"
+            "\n"
+            "SCENE is a JSON scene (docs/scene-format.md), an .obj model (materials from its\n"
+            ".mtl, lights from Ke, a camera that frames it) or a .ply mesh.\n"
+            "\n"
+            "render options (defaults from the scene's \"render\" block, else shown here):\n"
+            "  -o, --output FILE        PNG output, 8-bit sRGB (default: <scene name>.png)\n"
+            "      --hdr FILE           also write linear float PFM\n"
+            "      --size WxH           image size (512x512)\n"
+            "      --spp N              camera samples per pixel (4)\n"
+            "      --photons N          global photons emitted (400000)\n"
+            "      --caustic-photons N  caustic photons emitted (400000)\n"
+            "      --gather N           final-gather rays per visible diffuse point (64)\n"
+            "      --light-samples N    shadow rays per visible diffuse point (2)\n"
+            "      --global-k N         photons per irradiance estimate (100)\n"
+            "      --caustic-k N        photons per caustic estimate (80)\n"
+            "      --caustic-radius R   max caustic search radius in world units (0: 1%% of the scene)\n"
+            "      --max-depth N        mirror/glass recursion depth (16)\n"
+            "      --threads N          rendering threads (0: all cores)\n"
+            "      --seed N             random seed (1); the image depends on nothing else\n"
+            "      --exposure STOPS     PNG exposure in stops (0)\n"
+            "      --terms LIST         render only these terms: emitted,direct,caustic,indirect (all)\n"
+            "  -q, --quiet              only errors\n"
+            "  -v, --verbose            debug logging\n",
+            PF_VERSION, PF_GIT_HASH);
+}
+
+static int s_parse_u64(const char *s, uint64_t *out)
+{
+    char *end;
+    errno = 0;
+    unsigned long long v = strtoull(s, &end, 10);
+    if (errno || end == s || *end || s[0] == '-')
+        return -1;
+    *out = v;
+    return 0;
+}
+
+static int s_parse_int(const char *s, int lo, int hi, int *out)
+{
+    char *end;
+    errno = 0;
+    long v = strtol(s, &end, 10);
+    if (errno || end == s || *end || v < lo || v > hi)
+        return -1;
+    *out = (int)v;
+    return 0;
+}
+
+static int s_parse_float(const char *s, float *out)
+{
+    char *end;
+    errno = 0;
+    float v = strtof(s, &end);
+    if (errno || end == s || *end || !isfinite(v))
+        return -1;
+    *out = v;
+    return 0;
+}
+
+static int s_parse_terms(const char *s, unsigned *out)
+{
+    unsigned t = 0;
+    char buf[256];
+    snprintf(buf, sizeof buf, "%s", s);
+    for (char *save, *tok = strtok_r(buf, ",", &save); tok; tok = strtok_r(NULL, ",", &save)) {
+        if (!strcmp(tok, "emitted"))
+            t |= PF_TERM_EMITTED;
+        else if (!strcmp(tok, "direct"))
+            t |= PF_TERM_DIRECT;
+        else if (!strcmp(tok, "caustic"))
+            t |= PF_TERM_CAUSTIC;
+        else if (!strcmp(tok, "indirect"))
+            t |= PF_TERM_INDIRECT;
+        else if (!strcmp(tok, "all"))
+            t |= PF_TERM_ALL;
+        else
+            return -1;
+    }
+    *out = t;
+    return t ? 0 : -1;
+}
+
+/* Default output name: the scene file's stem, or its folder's name for scene.json. */
+static void s_default_output(const char *scene, char *out, size_t n)
+{
+    char tmp[1024];
+    snprintf(tmp, sizeof tmp, "%s", scene);
+    char *slash = strrchr(tmp, '/');
+    char *base = slash ? slash + 1 : tmp;
+    char *dot = strrchr(base, '.');
+    if (dot)
+        *dot = 0;
+    if (!strcmp(base, "scene") && slash) {
+        *slash = 0;
+        char *p = strrchr(tmp, '/');
+        base = p ? p + 1 : tmp;
+    }
+    snprintf(out, n, "%.1000s.png", base[0] ? base : "render");
+}
+
+enum {
+    OPT_HDR = 256, OPT_SIZE, OPT_SPP, OPT_PHOTONS, OPT_CPHOTONS, OPT_GATHER, OPT_LSAMPLES, OPT_GK, OPT_CK, OPT_CR,
+    OPT_DEPTH, OPT_THREADS, OPT_SEED, OPT_EXPOSURE, OPT_TERMS,
+};
+
+static int s_cmd_render(int argc, char **argv)
+{
+    static const struct option opts[] = {
+        { "output", required_argument, 0, 'o' },        { "hdr", required_argument, 0, OPT_HDR },
+        { "size", required_argument, 0, OPT_SIZE },      { "spp", required_argument, 0, OPT_SPP },
+        { "photons", required_argument, 0, OPT_PHOTONS }, { "caustic-photons", required_argument, 0, OPT_CPHOTONS },
+        { "gather", required_argument, 0, OPT_GATHER },  { "light-samples", required_argument, 0, OPT_LSAMPLES },
+        { "global-k", required_argument, 0, OPT_GK },    { "caustic-k", required_argument, 0, OPT_CK },
+        { "caustic-radius", required_argument, 0, OPT_CR }, { "max-depth", required_argument, 0, OPT_DEPTH },
+        { "threads", required_argument, 0, OPT_THREADS }, { "seed", required_argument, 0, OPT_SEED },
+        { "exposure", required_argument, 0, OPT_EXPOSURE }, { "terms", required_argument, 0, OPT_TERMS },
+        { "quiet", no_argument, 0, 'q' },                { "verbose", no_argument, 0, 'v' },
+        { "help", no_argument, 0, 'h' },                 { 0, 0, 0, 0 },
+    };
+    /* Command-line settings are applied over the scene's after it loads. */
+    struct {
+        int w, h, spp, gather, ls, gk, ck, depth, threads;
+        uint64_t photons, cphotons, seed;
+        float cr, exposure;
+        int has_w, has_spp, has_gather, has_ls, has_gk, has_ck, has_depth, has_threads, has_photons, has_cphotons,
+            has_seed, has_cr, has_exposure;
+    } o;
+    memset(&o, 0, sizeof o);
+    const char *out = NULL, *hdr = NULL;
+    unsigned terms = PF_TERM_ALL;
+    int c;
+    optind = 1;
+    while ((c = getopt_long(argc, argv, "o:qvh", opts, NULL)) != -1) {
+        int bad = 0;
+        switch (c) {
+        case 'o': out = optarg; break;
+        case OPT_HDR: hdr = optarg; break;
+        case OPT_SIZE:
+            bad = sscanf(optarg, "%dx%d", &o.w, &o.h) != 2 || o.w <= 0 || o.h <= 0 || o.w > 65536 || o.h > 65536;
+            o.has_w = 1;
+            break;
+        case OPT_SPP: bad = s_parse_int(optarg, 1, 1 << 20, &o.spp); o.has_spp = 1; break;
+        case OPT_PHOTONS: bad = s_parse_u64(optarg, &o.photons) || o.photons > (1ull << 31); o.has_photons = 1; break;
+        case OPT_CPHOTONS: bad = s_parse_u64(optarg, &o.cphotons) || o.cphotons > (1ull << 31); o.has_cphotons = 1; break;
+        case OPT_GATHER: bad = s_parse_int(optarg, 0, 1 << 16, &o.gather); o.has_gather = 1; break;
+        case OPT_LSAMPLES: bad = s_parse_int(optarg, 1, 1 << 10, &o.ls); o.has_ls = 1; break;
+        case OPT_GK: bad = s_parse_int(optarg, 1, 1024, &o.gk); o.has_gk = 1; break;
+        case OPT_CK: bad = s_parse_int(optarg, 1, 1024, &o.ck); o.has_ck = 1; break;
+        case OPT_CR: bad = s_parse_float(optarg, &o.cr) || o.cr < 0; o.has_cr = 1; break;
+        case OPT_DEPTH: bad = s_parse_int(optarg, 0, 1000, &o.depth); o.has_depth = 1; break;
+        case OPT_THREADS: bad = s_parse_int(optarg, 0, 4096, &o.threads); o.has_threads = 1; break;
+        case OPT_SEED: bad = s_parse_u64(optarg, &o.seed); o.has_seed = 1; break;
+        case OPT_EXPOSURE: bad = s_parse_float(optarg, &o.exposure); o.has_exposure = 1; break;
+        case OPT_TERMS: bad = s_parse_terms(optarg, &terms); break;
+        case 'q': pf_log_set_level(PF_LOG_ERROR); break;
+        case 'v': pf_log_set_level(PF_LOG_DEBUG); break;
+        case 'h': s_usage(stdout); return 0;
+        default: fprintf(stderr, "photonfarm render: see 'photonfarm --help'\n"); return EXIT_USAGE;
+        }
+        if (bad) {
+            fprintf(stderr, "photonfarm render: bad value '%s' for --%s\n", optarg,
+                    c == 'o' ? "output" : opts[0].name ? "option" : "");
+            for (const struct option *op = opts; op->name; op++)
+                if (op->val == c)
+                    fprintf(stderr, "  (option --%s)\n", op->name);
+            return EXIT_USAGE;
+        }
+    }
+    if (optind != argc - 1) {
+        fprintf(stderr, "photonfarm render: expected one SCENE argument (see 'photonfarm --help')\n");
+        return EXIT_USAGE;
+    }
+    const char *path = argv[optind];
+    char outbuf[1024];
+    if (!out) {
+        s_default_output(path, outbuf, sizeof outbuf);
+        out = outbuf;
+    }
+
+    double t0 = pf_now();
+    pf_error_t err = { { 0 } };
+    pf_scene_t *scene = pf_scene_load(path, &err);
+    if (!scene) {
+        pf_error("%s", err.msg);
+        return EXIT_INPUT;
+    }
+    pf_settings_t s = scene->settings;
+    if (o.has_w) { s.width = o.w; s.height = o.h; }
+    if (o.has_spp) s.spp = o.spp;
+    if (o.has_photons) s.photons = o.photons;
+    if (o.has_cphotons) s.caustic_photons = o.cphotons;
+    if (o.has_gather) s.gather = o.gather;
+    if (o.has_ls) s.light_samples = o.ls;
+    if (o.has_gk) s.global_k = o.gk;
+    if (o.has_ck) s.caustic_k = o.ck;
+    if (o.has_cr) s.caustic_radius = o.cr;
+    if (o.has_depth) s.max_depth = o.depth;
+    if (o.has_threads) s.threads = o.threads;
+    if (o.has_seed) s.seed = o.seed;
+    if (o.has_exposure) s.exposure = o.exposure;
+    size_t ntris = 0;
+    for (size_t i = 0; i < scene->nmeshes; i++)
+        ntris += scene->meshes[i].ntris;
+    pf_info("scene %s: %zu triangles, %zu spheres, %zu materials, %zu point/spot lights (%.2f s to load)", path, ntris,
+            scene->nspheres, scene->nmats, scene->nlights, pf_now() - t0);
+    pf_info("settings: %dx%d, %d spp, %" PRIu64 " global + %" PRIu64 " caustic photons, %d gather rays, seed %" PRIu64,
+            s.width, s.height, s.spp, s.photons, s.caustic_photons, s.gather, s.seed);
+
+    pf_image_t img = { 0 };
+    pf_job_summary_t sum;
+    int rc = pf_job_render_local(scene, &s, terms, 1, &img, &sum, &err);
+    pf_scene_destroy(&scene);
+    if (rc != PF_OK) {
+        pf_error("render failed: %s", err.msg);
+        return EXIT_RENDER;
+    }
+    if (sum.bad_pixels)
+        pf_warn("%zu image channels were non-finite or negative", sum.bad_pixels);
+    rc = pf_image_write_png(&img, out, s.exposure, &err);
+    if (rc == PF_OK && hdr)
+        rc = pf_image_write_pfm(&img, hdr, &err);
+    pf_image_free(&img);
+    if (rc != PF_OK) {
+        pf_error("%s", err.msg);
+        return EXIT_RENDER;
+    }
+    pf_info("done in %.2f s (%d threads): Embree %.2f s, photons %.2f s, render %.2f s -> %s%s%s", pf_now() - t0,
+            sum.threads, sum.accel_s, sum.photons.trace_s + sum.photons.build_s + sum.photons.irradiance_s,
+            sum.render_s, out, hdr ? ", " : "", hdr ? hdr : "");
+    return 0;
+}
+
+int main(int argc, char **argv)
+{
+    if (argc < 2) {
+        s_usage(stderr);
+        return EXIT_USAGE;
+    }
+    const char *cmd = argv[1];
+    if (!strcmp(cmd, "--help") || !strcmp(cmd, "-h") || !strcmp(cmd, "help")) {
+        s_usage(stdout);
+        return 0;
+    }
+    if (!strcmp(cmd, "--version")) {
+        printf("photonfarm %s (%s)\n", PF_VERSION, PF_GIT_HASH);
+        return 0;
+    }
+    if (!strcmp(cmd, "render"))
+        return s_cmd_render(argc - 1, argv + 1);
+    if (!strcmp(cmd, "compare"))
+        return pf_cli_compare(argc - 1, argv + 1);
+    fprintf(stderr, "photonfarm: unknown command '%s' (see 'photonfarm --help')\n", cmd);
+    return EXIT_USAGE;
+}

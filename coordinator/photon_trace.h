@@ -1,0 +1,23 @@
+/* photon_trace.h: the photon pass. Traces global and caustic photons from the
+ * lights and builds the global, caustic and precomputed-irradiance maps. */
+#ifndef PF_PHOTON_TRACE_H
+#define PF_PHOTON_TRACE_H
+
+#include "common/accel.h"
+#include "common/light.h"
+#include "common/photonmap.h"
+#include "common/scene.h"
+
+typedef struct pf_photon_stats {
+    uint64_t global_stored, caustic_stored, irradiance_points;
+    uint64_t rejected;          /* photons dropped for non-finite or negative power */
+    double trace_s, build_s, irradiance_s;
+} pf_photon_stats_t;
+
+/* Runs the photon pass with settings->threads OpenMP threads. Photon i draws
+ * from its own counter-based stream and photons are stored in index order,
+ * so the maps are identical for any thread count. 0 or a status. */
+int pf_photon_pass(const pf_scene_t *scene, const pf_accel_t *accel, const pf_lights_t *lights,
+                   const pf_settings_t *settings, pf_photon_maps_t *maps, pf_photon_stats_t *stats);
+
+#endif

@@ -1,0 +1,51 @@
+/* render.h: the worker's tile renderer. Given the scene, its Embree
+ * structure, the lights and the photon maps, renders any rectangle of the
+ * image. Tiles are independent: a pixel's value depends on the scene, the
+ * settings, the maps and the seed only, never on the tile it falls in or the
+ * thread that renders it. */
+#ifndef PF_RENDER_H
+#define PF_RENDER_H
+
+#include "common/accel.h"
+#include "common/camera.h"
+#include "common/image.h"
+#include "common/light.h"
+#include "common/photonmap.h"
+#include "common/scene.h"
+
+/* Terms of the light-transport split, for rendering them separately. */
+enum {
+    PF_TERM_EMITTED = 1,  /* emitters seen directly or through mirror/glass */
+    PF_TERM_DIRECT = 2,   /* light sampling at the visible non-specular point */
+    PF_TERM_CAUSTIC = 4,  /* caustic map at the visible diffuse point */
+    PF_TERM_INDIRECT = 8, /* final gather over the global map */
+    PF_TERM_ALL = 15,
+};
+
+typedef struct pf_render_ctx {
+    const pf_scene_t *scene;
+    const pf_accel_t *accel;
+    const pf_lights_t *lights;
+    const pf_photon_maps_t *maps;
+    pf_settings_t settings;
+    pf_camera_t camera;
+    unsigned terms; /* PF_TERM_* mask */
+} pf_render_ctx_t;
+
+/* Fills ctx for a full render of the scene at settings' size. */
+void pf_render_ctx_init(pf_render_ctx_t *ctx, const pf_scene_t *scene, const pf_accel_t *accel,
+                        const pf_lights_t *lights, const pf_photon_maps_t *maps, const pf_settings_t *settings);
+
+/* Renders pixels [x0, x0+w) x [y0, y0+h) into out (w*h*3 floats, top row
+ * first), single-threaded (call it from as many threads as you like). */
+void pf_render_tile(const pf_render_ctx_t *ctx, int x0, int y0, int w, int h, float *out);
+
+/* Progress callback: tiles done so far and in all. */
+typedef void (*pf_progress_fn)(void *user, int done, int total);
+
+/* Renders the whole image in-process with `threads` OpenMP threads over
+ * tiles of tile x tile pixels. img must be allocated at the camera's size. */
+void pf_render_image(const pf_render_ctx_t *ctx, pf_image_t *img, int threads, int tile, pf_progress_fn progress,
+                     void *user);
+
+#endif
