@@ -203,20 +203,36 @@ int pf_accel_occluded(const pf_accel_t *self, const pf_ray_t *ray, float tmax)
     return r.tfar < 0.0f;
 }
 
+/* Moves f by n units in the last place towards +infinity (n > 0) or
+ * -infinity (n < 0); on the bit pattern that is a step away from or towards
+ * zero depending on f's sign. */
+static inline float s_ulp_step(float f, int n)
+{
+    union { float f; int32_t i; } u = { f };
+    u.i += (f < 0.0f) ? -n : n;
+    return u.f;
+}
+
 pf_vec3 pf_offset_origin(pf_vec3 p, pf_vec3 perr, pf_vec3 ng, pf_vec3 w)
 {
-    float d = pf_dot(pf_vabs(ng), perr);
-    pf_vec3 off = pf_scale(ng, d);
-    if (pf_dot(w, ng) < 0.0f)
-        off = pf_neg(off);
-    pf_vec3 po = pf_add(p, off);
-    float c[3] = { po.x, po.y, po.z };
-    float o[3] = { off.x, off.y, off.z };
+    /* 1. pbrt-v3: move past the hit point's own error bound along the normal
+     *    on w's side, rounding away from the surface. */
+    pf_vec3 n = pf_dot(w, ng) < 0.0f ? pf_neg(ng) : ng;
+    float d = pf_dot(pf_vabs(n), perr);
+    pf_vec3 po = pf_madd(p, n, d);
+    /* 2. Wächter & Binder (Ray Tracing Gems, ch. 6): the bound above covers
+     *    the hit point but not Embree's own rounding when it intersects a ray
+     *    starting on a surface; where the bound is zero (a wall exactly at
+     *    y = 0 has an exactly representable hit point) the origin would lie
+     *    on the plane and re-hit it at t = 0. Step a further 256 ulps along
+     *    the normal, or 2^-16 absolute near zero where ulps are denormal
+     *    (and flushed to zero). */
+    const float origin = 1.0f / 32.0f, float_scale = 1.0f / 65536.0f, int_scale = 256.0f;
+    float c[3] = { po.x, po.y, po.z }, nn[3] = { n.x, n.y, n.z };
     for (int i = 0; i < 3; i++) {
-        if (o[i] > 0.0f)
-            c[i] = nextafterf(c[i], INFINITY);
-        else if (o[i] < 0.0f)
-            c[i] = nextafterf(c[i], -INFINITY);
+        int of = (int)(int_scale * nn[i]);
+        float stepped = s_ulp_step(c[i], of);
+        c[i] = fabsf(c[i]) < origin ? c[i] + float_scale * nn[i] : stepped;
     }
     return pf_v3(c[0], c[1], c[2]);
 }

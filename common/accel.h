@@ -36,8 +36,10 @@ int pf_accel_intersect(const pf_accel_t *self, const pf_ray_t *ray, float tmax, 
 /* 1 when anything lies along ray within (0, tmax). */
 int pf_accel_occluded(const pf_accel_t *self, const pf_ray_t *ray, float tmax);
 
-/* Offsets p to the side of ng that w points to, by the projection of the
- * error bound on ng, then one ulp further away (pbrt-v3's OffsetRayOrigin). */
+/* Offsets p to the side of ng that w points to: by the projection of the
+ * error bound on ng (pbrt-v3's OffsetRayOrigin), then by Wächter & Binder's
+ * 256-ulp step along ng (an absolute 2^-16 near zero), which covers Embree's
+ * rounding for rays that start on a surface. */
 pf_vec3 pf_offset_origin(pf_vec3 p, pf_vec3 perr, pf_vec3 ng, pf_vec3 w);
 /* A ray leaving the hit point in direction w. */
 static inline pf_ray_t pf_spawn_ray(const pf_hit_t *h, pf_vec3 w)

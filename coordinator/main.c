@@ -46,7 +46,8 @@ static void s_usage(FILE *f)
             "      --threads N          rendering threads (0: all cores)\n"
             "      --seed N             random seed (1); the image depends on nothing else\n"
             "      --exposure STOPS     PNG exposure in stops (0)\n"
-            "      --terms LIST         render only these terms: emitted,direct,caustic,indirect (all)\n"
+            "      --terms LIST         render only these terms: emitted,direct,caustic,indirect (all);\n"
+            "                           photonmap shows the global map's radiance (debugging)\n"
             "  -q, --quiet              only errors\n"
             "  -v, --verbose            debug logging\n",
             PF_VERSION, PF_GIT_HASH);
@@ -99,6 +100,8 @@ static int s_parse_terms(const char *s, unsigned *out)
             t |= PF_TERM_CAUSTIC;
         else if (!strcmp(tok, "indirect"))
             t |= PF_TERM_INDIRECT;
+        else if (!strcmp(tok, "photonmap"))
+            t |= PF_TERM_PHOTONMAP;
         else if (!strcmp(tok, "all"))
             t |= PF_TERM_ALL;
         else

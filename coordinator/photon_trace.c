@@ -109,6 +109,8 @@ static int s_trace(const s_ctx *c, uint64_t seed, uint64_t index, uint64_t emitt
             } else {
                 return 0; /* absorbed */
             }
+            if (pf_dot(wo, nf) <= 0.0f)
+                return 0; /* the shading normal sent it below the surface */
             specular_only = 0;
         } else if (m->type == PF_MAT_MIRROR) {
             float p = pf_maxc(m->ks);

@@ -193,6 +193,8 @@ static pf_vec3 s_radiance(s_state *st, pf_ray_t ray, int depth, pf_vec3 thr, int
     if (m->type == PF_MAT_DIFFUSE) {
         if (!pf_mat_nonspecular(m))
             return L;
+        if (c->terms & PF_TERM_PHOTONMAP)
+            return pf_add(L, pf_scale(pf_mul(m->kd, s_irradiance(st, h.p, nf)), PF_INV_PI));
         if (c->terms & PF_TERM_DIRECT)
             L = pf_add(L, s_direct(st, &h, m, nf, ns, wo));
         if (!pf_is_black(m->kd)) {

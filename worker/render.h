@@ -20,6 +20,7 @@ enum {
     PF_TERM_CAUSTIC = 4,  /* caustic map at the visible diffuse point */
     PF_TERM_INDIRECT = 8, /* final gather over the global map */
     PF_TERM_ALL = 15,
+    PF_TERM_PHOTONMAP = 16, /* debugging: the global map's radiance at the visible point, no gather */
 };
 
 typedef struct pf_render_ctx {
