@@ -22,7 +22,7 @@ pf_settings_t pf_settings_default(void)
         .gather = 64,
         .light_samples = 2,
         .max_depth = 16,
-        .photon_max_depth = 64,
+        .photon_max_depth = 1000,
         .global_k = 100,
         .caustic_k = 80,
         .caustic_radius = 0.0f,

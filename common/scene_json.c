@@ -534,7 +534,7 @@ static int s_render(s_ctx_t *c, const cJSON *r)
         { "gather", offsetof(pf_settings_t, gather), 0, 1 << 16 },
         { "light_samples", offsetof(pf_settings_t, light_samples), 1, 1 << 16 },
         { "max_depth", offsetof(pf_settings_t, max_depth), 0, 1024 },
-        { "photon_max_depth", offsetof(pf_settings_t, photon_max_depth), 1, 1024 },
+        { "photon_max_depth", offsetof(pf_settings_t, photon_max_depth), 1, 100000 },
         { "global_k", offsetof(pf_settings_t, global_k), 1, 1 << 16 },
         { "caustic_k", offsetof(pf_settings_t, caustic_k), 1, 1 << 16 },
         { "irradiance_stride", offsetof(pf_settings_t, irradiance_stride), 1, 1 << 20 },

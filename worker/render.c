@@ -98,13 +98,20 @@ static pf_vec3 s_direct(s_state *st, const pf_hit_t *h, const pf_material_t *m, 
 static pf_vec3 s_irradiance(s_state *st, pf_vec3 p, pf_vec3 nf)
 {
     const pf_photon_maps_t *pm = st->ctx->maps;
-    pf_knn_t near[8];
-    size_t cnt = pm->irradiance ? pf_kdtree_knn(pm->irradiance, p, 8, pm->irradiance_r2, near) : 0;
-    const pf_photon_t *pts = cnt ? pf_kdtree_photons(pm->irradiance) : NULL;
-    for (size_t i = 0; i < cnt; i++) {
-        const pf_photon_t *q = &pts[near[i].index];
-        if (pf_dot(pf_oct_decode(q->normal), nf) >= PF_NORMAL_AGREE)
-            return pf_photon_power(q);
+    if (pm->irradiance) {
+        /* The nearest point almost always lies on the same surface; only near
+         * edges and corners does a wider search pay. */
+        pf_knn_t near[8];
+        const pf_photon_t *pts = pf_kdtree_photons(pm->irradiance);
+        size_t cnt = pf_kdtree_knn(pm->irradiance, p, 1, pm->irradiance_r2, near);
+        if (cnt && pf_dot(pf_oct_decode(pts[near[0].index].normal), nf) >= PF_NORMAL_AGREE)
+            return pf_photon_power(&pts[near[0].index]);
+        cnt = cnt ? pf_kdtree_knn(pm->irradiance, p, 8, pm->irradiance_r2, near) : 0;
+        for (size_t i = 1; i < cnt; i++) {
+            const pf_photon_t *q = &pts[near[i].index];
+            if (pf_dot(pf_oct_decode(q->normal), nf) >= PF_NORMAL_AGREE)
+                return pf_photon_power(q);
+        }
     }
     return pf_pm_irradiance(pm->global, p, nf, st->ctx->settings.global_k, pm->global_r2, st->scratch);
 }
@@ -270,6 +277,11 @@ void pf_render_tile(const pf_render_ctx_t *ctx, int x0, int y0, int w, int h, fl
     PF_CHECK(st != NULL);
     st->ctx = ctx;
     int spp = ctx->settings.spp > 0 ? ctx->settings.spp : 1;
+    /* Jitter is stratified on a k x k grid when spp = k^2 (edges against the
+     * bright light dominate the error otherwise), random otherwise. */
+    int strata = (int)lrintf(sqrtf((float)spp));
+    if (strata * strata != spp)
+        strata = 0;
     for (int y = 0; y < h; y++) {
         for (int x = 0; x < w; x++) {
             int px = x0 + x, py = y0 + y;
@@ -278,6 +290,10 @@ void pf_render_tile(const pf_render_ctx_t *ctx, int x0, int y0, int w, int h, fl
             for (int s = 0; s < spp; s++) {
                 st->rng = pf_rng_make(ctx->settings.seed, PF_STREAM_PIXEL, pixel, (uint32_t)s);
                 float jx = s_u(st), jy = s_u(st);
+                if (strata) {
+                    jx = ((float)(s % strata) + jx) / (float)strata;
+                    jy = ((float)(s / strata) + jy) / (float)strata;
+                }
                 pf_ray_t ray = pf_camera_ray(&ctx->camera, (float)px + jx, (float)py + jy);
                 pf_vec3 L = s_radiance(st, ray, 0, pf_v3s(1.0f), 1);
                 if (!pf_is_finite3(L) || L.x < 0.0f || L.y < 0.0f || L.z < 0.0f)
