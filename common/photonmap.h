@@ -29,8 +29,9 @@ void pf_photon_maps_free(pf_photon_maps_t *maps);
 #define PF_MAX_K 1024
 
 /* Irradiance (W/m^2) at x on the surface with unit normal n: the flux of the
- * k nearest photons within max_r2 whose normals agree, over the disc pi r^2,
- * r the distance to the k-th photon (or sqrt(max_r2) when fewer are found).
+ * k - 1 nearest photons whose normals agree, over the disc pi r^2, r the
+ * distance to the k-th photon (unbiased for a uniform density); when fewer
+ * than k lie within max_r2, all of them over pi max_r2.
  * scratch holds k entries; k <= PF_MAX_K. */
 pf_vec3 pf_pm_irradiance(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int k, float max_r2, pf_knn_t *scratch);
 

@@ -34,11 +34,11 @@ static void s_usage(FILE *f)
             "  -o, --output FILE        PNG output, 8-bit sRGB (default: <scene name>.png)\n"
             "      --hdr FILE           also write linear float PFM\n"
             "      --size WxH           image size (512x512)\n"
-            "      --spp N              camera samples per pixel (4)\n"
+            "      --spp N              camera samples per pixel, stratified when a square (16)\n"
             "      --photons N          global photons emitted (400000)\n"
             "      --caustic-photons N  caustic photons emitted (400000)\n"
-            "      --gather N           final-gather rays per visible diffuse point (64)\n"
-            "      --light-samples N    shadow rays per visible diffuse point (2)\n"
+            "      --gather N           final-gather rays per camera sample at a diffuse point (16)\n"
+            "      --light-samples N    shadow rays per camera sample at a diffuse point (1)\n"
             "      --global-k N         photons per irradiance estimate (100)\n"
             "      --caustic-k N        photons per caustic estimate (80)\n"
             "      --caustic-radius R   max caustic search radius in world units (0: 1%% of the scene)\n"
@@ -57,8 +57,10 @@ static int s_parse_u64(const char *s, uint64_t *out)
 {
     char *end;
     errno = 0;
+    if (s[0] < '0' || s[0] > '9')
+        return -1; /* strtoull would skip spaces and wrap "-1" around */
     unsigned long long v = strtoull(s, &end, 10);
-    if (errno || end == s || *end || s[0] == '-')
+    if (errno || end == s || *end)
         return -1;
     *out = v;
     return 0;
@@ -161,13 +163,18 @@ static int s_cmd_render(int argc, char **argv)
     unsigned terms = PF_TERM_ALL;
     int c;
     optind = 1;
-    while ((c = getopt_long(argc, argv, "o:qvh", opts, NULL)) != -1) {
+    opterr = 0;
+    while ((c = getopt_long(argc, argv, ":o:qvh", opts, NULL)) != -1) {
         int bad = 0;
         switch (c) {
         case 'o': out = optarg; break;
         case OPT_HDR: hdr = optarg; break;
         case OPT_SIZE:
-            bad = sscanf(optarg, "%dx%d", &o.w, &o.h) != 2 || o.w <= 0 || o.h <= 0 || o.w > 65536 || o.h > 65536;
+            {
+                char tail = 0;
+                bad = sscanf(optarg, "%dx%d%c", &o.w, &o.h, &tail) != 2 || o.w <= 0 || o.h <= 0 || o.w > 65536 ||
+                      o.h > 65536;
+            }
             o.has_w = 1;
             break;
         case OPT_SPP: bad = s_parse_int(optarg, 1, 1 << 20, &o.spp); o.has_spp = 1; break;
@@ -186,14 +193,19 @@ static int s_cmd_render(int argc, char **argv)
         case 'q': pf_log_set_level(PF_LOG_ERROR); break;
         case 'v': pf_log_set_level(PF_LOG_DEBUG); break;
         case 'h': s_usage(stdout); return 0;
-        default: fprintf(stderr, "photonfarm render: see 'photonfarm --help'\n"); return EXIT_USAGE;
+        case ':':
+            fprintf(stderr, "photonfarm render: option '%s' needs a value (see 'photonfarm --help')\n", argv[optind - 1]);
+            return EXIT_USAGE;
+        default:
+            fprintf(stderr, "photonfarm render: unknown option '%s' (see 'photonfarm --help')\n", argv[optind - 1]);
+            return EXIT_USAGE;
         }
         if (bad) {
-            fprintf(stderr, "photonfarm render: bad value '%s' for --%s\n", optarg,
-                    c == 'o' ? "output" : opts[0].name ? "option" : "");
+            const char *name = "?";
             for (const struct option *op = opts; op->name; op++)
                 if (op->val == c)
-                    fprintf(stderr, "  (option --%s)\n", op->name);
+                    name = op->name;
+            fprintf(stderr, "photonfarm render: bad value '%s' for --%s (see 'photonfarm --help')\n", optarg, name);
             return EXIT_USAGE;
         }
     }

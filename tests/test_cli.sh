@@ -248,19 +248,16 @@ bad_value --seed -1
 bad_value --exposure nan
 bad_value --terms bogus
 
-# The option should be named on the line that reports the bad value; today
-# that line reads "bad value '0x5' for --option" and the name follows on a
-# second line.
+# The option is named on the line that reports the bad value.
 run render --size 0x5 "$SCENES/cornell-box/scene.json"
-known_bug "the bad-value message reads \"bad value '0x5' for --size\" (it says '--option')" \
+check "the bad-value message reads \"bad value '0x5' for --size\"" \
     err_has "bad value '0x5' for --size"
-# sscanf("%dx%d") stops after the height, so trailing junk is accepted.
+# Trailing junk after the height is refused.
 run render --size 16x16junk "$SCENES/cornell-box/scene.json" "${SMALL[@]}" -o "$T/junk.png"
-known_bug "--size '16x16junk' is refused with exit 2 (it is accepted as 16x16)" rc_is 2
-# strtoull skips leading blanks and then negates "-1" to 2^64-1; only a
-# leading '-' in the first byte is refused.
+check "--size '16x16junk' is refused with exit 2" rc_is 2
+# strtoull would skip leading blanks and wrap "-1" to 2^64-1: only digits pass.
 run render --seed " -1" "$SCENES/cornell-box/scene.json" "${SMALL[@]}" --size 8x8 -o "$T/seed.png"
-known_bug "--seed ' -1' is refused with exit 2 (it is accepted as seed 2^64-1)" rc_is 2
+check "--seed ' -1' is refused with exit 2" rc_is 2
 
 # ---------------------------------------------------------------------------
 echo "# 2. the shipped scenes render to valid PNG and PFM files"

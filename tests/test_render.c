@@ -1,0 +1,292 @@
+/* test_render.c: the renderer end to end, in-process (photon pass, Embree,
+ * tiles), in three ctests chosen by argv[1]:
+ *
+ *   furnace      a closed sphere with emission Le and albedo a (inward
+ *                winding, camera inside) has radiance Le / (1 - a) everywhere;
+ *                checked within 1 % on the mean for several albedos. Breaks if
+ *                photon power is lost or gained (Russian roulette, first-hit
+ *                storage), if a path class is counted twice or dropped, or if
+ *                the density estimate is mis-normalized.
+ *   determinism  the image and the photon maps are bit-identical for 1 and 2
+ *                threads and for different tile sizes.
+ *   accuracy     both Cornell scenes at 128x128 against the references of
+ *                other renderers (tests/data/references), with bounds just
+ *                above what this renderer measures at these settings: a real
+ *                regression (6 % too much light from a self-intersection bug
+ *                gave relMSE 0.029 and luminance 1.06 on cornell-spheres)
+ *                breaks them; the fixed seed keeps the noise fixed. */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "common/accel.h"
+#include "common/image.h"
+#include "common/light.h"
+#include "common/log.h"
+#include "common/metrics.h"
+#include "common/scene.h"
+#include "coordinator/job.h"
+#include "coordinator/photon_trace.h"
+#include "worker/render.h"
+
+static int s_pass, s_fail;
+#define CHECK(cond, ...)                                                                                               \
+    do {                                                                                                               \
+        if (cond) {                                                                                                    \
+            s_pass++;                                                                                                  \
+        } else {                                                                                                       \
+            s_fail++;                                                                                                  \
+            printf("FAIL %s:%d: ", __FILE__, __LINE__);                                                                \
+            printf(__VA_ARGS__);                                                                                       \
+            printf("\n");                                                                                              \
+        }                                                                                                              \
+    } while (0)
+
+/* A geodesic sphere (subdivided octahedron), wound so the face normals point
+ * inwards: the emission and the diffuse side face the centre. */
+static void s_inward_sphere(pf_scene_t *scene, int levels, float radius, uint32_t mat)
+{
+    size_t ntris = 8;
+    for (int l = 0; l < levels; l++)
+        ntris *= 4;
+    pf_mesh_t m = { 0 };
+    snprintf(m.name, sizeof m.name, "furnace");
+    m.nverts = 3 * ntris;
+    m.ntris = ntris;
+    m.pos = malloc(m.nverts * sizeof *m.pos);
+    m.idx = malloc(3 * ntris * sizeof *m.idx);
+    m.mat = malloc(ntris * sizeof *m.mat);
+    pf_vec3 *tri = malloc(3 * ntris * sizeof *tri), *next = malloc(3 * ntris * sizeof *next);
+    const pf_vec3 ax[6] = { { 1, 0, 0 }, { -1, 0, 0 }, { 0, 1, 0 }, { 0, -1, 0 }, { 0, 0, 1 }, { 0, 0, -1 } };
+    size_t n = 0;
+    for (int sx = 0; sx < 2; sx++)
+        for (int sy = 2; sy < 4; sy++)
+            for (int sz = 4; sz < 6; sz++) {
+                pf_vec3 a = ax[sx], b = ax[sy], c = ax[sz];
+                /* orient inwards: the normal must point towards the origin */
+                if (pf_dot(pf_cross(pf_sub(b, a), pf_sub(c, a)), a) > 0) {
+                    pf_vec3 t = b;
+                    b = c;
+                    c = t;
+                }
+                tri[n++] = a, tri[n++] = b, tri[n++] = c;
+            }
+    for (int l = 0; l < levels; l++) {
+        size_t k = 0;
+        for (size_t t = 0; t < n; t += 3) {
+            pf_vec3 a = tri[t], b = tri[t + 1], c = tri[t + 2];
+            pf_vec3 ab = pf_norm(pf_add(a, b)), bc = pf_norm(pf_add(b, c)), ca = pf_norm(pf_add(c, a));
+            pf_vec3 out[12] = { a, ab, ca, ab, b, bc, ca, bc, c, ab, bc, ca };
+            memcpy(&next[k], out, sizeof out);
+            k += 12;
+        }
+        memcpy(tri, next, k * sizeof *tri);
+        n = k;
+    }
+    for (size_t i = 0; i < n; i++) {
+        m.pos[i] = pf_scale(tri[i], radius);
+        m.idx[i] = (uint32_t)i;
+    }
+    for (size_t t = 0; t < ntris; t++)
+        m.mat[t] = mat;
+    free(tri);
+    free(next);
+    PF_CHECK(pf_scene_add_mesh(scene, &m) == PF_OK);
+}
+
+static void s_test_furnace(void)
+{
+    const float albedos[] = { 0.2f, 0.5f, 0.9f };
+    for (size_t i = 0; i < sizeof albedos / sizeof *albedos; i++) {
+        float a = albedos[i], le = 1.0f;
+        pf_scene_t *scene = pf_scene_create();
+        pf_material_t m = pf_material_default("furnace");
+        m.kd = pf_v3s(a);
+        m.le = pf_v3s(le);
+        s_inward_sphere(scene, 4, 1.0f, (uint32_t)pf_scene_add_material(scene, &m));
+        scene->camera = (pf_camera_desc_t){ { 0.1f, 0.05f, 0 }, { 1, 0.3f, 0.2f }, { 0, 1, 0 }, 90.0f };
+        scene->has_camera = 1;
+        pf_error_t err = { { 0 } };
+        CHECK(pf_scene_finalize(scene, &err) == PF_OK, "finalize: %s", err.msg);
+        pf_settings_t s = scene->settings;
+        s.width = s.height = 24;
+        s.spp = 1;
+        s.photons = 60000;
+        s.caustic_photons = 0;
+        s.gather = 32;
+        pf_image_t img;
+        pf_job_summary_t sum;
+        int rc = pf_job_render_local(scene, &s, PF_TERM_ALL, 0, &img, &sum, &err);
+        CHECK(rc == PF_OK, "render: %s", err.msg);
+        if (rc == PF_OK) {
+            double mean = 0.0, lo = INFINITY, hi = 0.0;
+            size_t n = (size_t)img.width * (size_t)img.height * 3;
+            for (size_t k = 0; k < n; k++) {
+                mean += img.rgb[k];
+                lo = fmin(lo, img.rgb[k]);
+                hi = fmax(hi, img.rgb[k]);
+            }
+            mean /= (double)n;
+
+            double expect = le / (1.0 - a);
+            printf("furnace a=%.2f: mean %.5f expected %.5f (ratio %.4f), pixels in [%.4f, %.4f]\n", a, mean, expect,
+                   mean / expect, lo, hi);
+            CHECK(fabs(mean / expect - 1.0) < 0.01, "albedo %.2f: mean radiance %.5f, expected %.5f within 1%%", a,
+                  mean, expect);
+            /* Per pixel: direct-light sampling near the concave edges between
+             * facets has infinite variance (cos cos / d^2 with both points near
+             * the edge), so a few pixels stray; 98 % must lie within 10 %. */
+            size_t inside = 0;
+            for (size_t k = 0; k < n; k++)
+                inside += fabs(img.rgb[k] / expect - 1.0) <= 0.10;
+            CHECK((double)inside >= 0.98 * (double)n, "albedo %.2f: only %zu of %zu channels within 10%% of %.4f", a,
+                  inside, n, expect);
+            CHECK(sum.bad_pixels == 0, "albedo %.2f: %zu bad channels", a, sum.bad_pixels);
+            pf_image_free(&img);
+        }
+        pf_scene_destroy(&scene);
+    }
+}
+
+/* Renders a scene's image with the given threads and tile size through the
+ * same steps as pf_job_render_local, and returns its photon maps too. */
+static void s_render(const pf_scene_t *scene, const pf_settings_t *s0, int threads, int tile, pf_image_t *img,
+                     pf_photon_maps_t *maps)
+{
+    pf_settings_t s = *s0;
+    s.threads = threads;
+    pf_error_t err;
+    pf_accel_t *accel = pf_accel_create(scene, &err);
+    pf_lights_t *lights = pf_lights_build(scene);
+    pf_photon_stats_t st;
+    PF_CHECK(accel && lights && pf_photon_pass(scene, accel, lights, &s, maps, &st) == PF_OK);
+    pf_render_ctx_t ctx;
+    pf_render_ctx_init(&ctx, scene, accel, lights, maps, &s);
+    PF_CHECK(pf_image_alloc(img, s.width, s.height) == PF_OK);
+    pf_render_image(&ctx, img, threads, tile, NULL, NULL);
+    pf_lights_destroy(&lights);
+    pf_accel_destroy(&accel);
+}
+
+static int s_same_tree(const pf_kdtree_t *a, const pf_kdtree_t *b)
+{
+    size_t n = pf_kdtree_size(a);
+    return n == pf_kdtree_size(b) && memcmp(pf_kdtree_photons(a), pf_kdtree_photons(b), n * sizeof(pf_photon_t)) == 0 &&
+           memcmp(pf_kdtree_axes(a), pf_kdtree_axes(b), n) == 0;
+}
+
+static void s_test_determinism(void)
+{
+    pf_error_t err = { { 0 } };
+    pf_scene_t *scene = pf_scene_load("scenes/cornell-spheres/scene.json", &err);
+    CHECK(scene != NULL, "load: %s", err.msg);
+    if (!scene)
+        return;
+    pf_settings_t s = scene->settings;
+    s.width = s.height = 40;
+    s.spp = 2;
+    s.photons = 50000;
+    s.caustic_photons = 50000;
+    s.gather = 8;
+    pf_image_t a, b, c;
+    pf_photon_maps_t ma, mb, mc;
+    s_render(scene, &s, 1, 32, &a, &ma);
+    s_render(scene, &s, 2, 32, &b, &mb);
+    s_render(scene, &s, 2, 7, &c, &mc);
+    size_t bytes = (size_t)a.width * (size_t)a.height * 3 * sizeof(float);
+    CHECK(memcmp(a.rgb, b.rgb, bytes) == 0, "image differs between 1 and 2 threads");
+    CHECK(memcmp(a.rgb, c.rgb, bytes) == 0, "image differs between tile sizes 32 and 7");
+    CHECK(s_same_tree(ma.global, mb.global) && s_same_tree(ma.caustic, mb.caustic) &&
+              s_same_tree(ma.irradiance, mb.irradiance),
+          "photon maps differ between 1 and 2 threads");
+    CHECK(pf_kdtree_size(ma.global) > 0 && pf_kdtree_size(ma.caustic) > 0, "maps are empty");
+    /* And a different seed changes the image: the seed really feeds the samples. */
+    s.seed = 2;
+    pf_image_t d;
+    pf_photon_maps_t md;
+    s_render(scene, &s, 2, 32, &d, &md);
+    CHECK(memcmp(a.rgb, d.rgb, bytes) != 0, "seed 2 gave the same image as seed 1");
+    /* PFM files written from the two renders are byte-identical too. */
+    char pa[] = "/tmp/pf_det_XXXXXX";
+    int fd = mkstemp(pa);
+    PF_CHECK(fd >= 0);
+    close(fd);
+    char pb[64];
+    snprintf(pb, sizeof pb, "%s.b", pa);
+    CHECK(pf_image_write_pfm(&a, pa, &err) == PF_OK && pf_image_write_pfm(&b, pb, &err) == PF_OK, "write: %s",
+          err.msg);
+    FILE *fa = fopen(pa, "rb"), *fb = fopen(pb, "rb");
+    int same = fa && fb;
+    while (same) {
+        int x = fgetc(fa), y = fgetc(fb);
+        same = (x == y);
+        if (x == EOF || y == EOF)
+            break;
+    }
+    CHECK(same, "PFM files differ");
+    if (fa)
+        fclose(fa);
+    if (fb)
+        fclose(fb);
+    remove(pa);
+    remove(pb);
+    pf_image_t *imgs[] = { &a, &b, &c, &d };
+    pf_photon_maps_t *maps[] = { &ma, &mb, &mc, &md };
+    for (int i = 0; i < 4; i++) {
+        pf_image_free(imgs[i]);
+        pf_photon_maps_free(maps[i]);
+    }
+    pf_scene_destroy(&scene);
+}
+
+static void s_accuracy(const char *scene_path, const char *ref_path, double max_relmse, double max_lum_dev)
+{
+    pf_error_t err = { { 0 } };
+    pf_scene_t *scene = pf_scene_load(scene_path, &err);
+    CHECK(scene != NULL, "load: %s", err.msg);
+    if (!scene)
+        return;
+    pf_settings_t s = scene->settings;
+    s.width = s.height = 128;
+    s.spp = 16;
+    s.gather = 16;
+    s.photons = 200000;
+    s.caustic_photons = 200000;
+    pf_image_t img, ref;
+    pf_job_summary_t sum;
+    int rc = pf_job_render_local(scene, &s, PF_TERM_ALL, 0, &img, &sum, &err);
+    CHECK(rc == PF_OK, "render %s: %s", scene_path, err.msg);
+    rc = rc ? rc : pf_image_read_pfm(&ref, ref_path, &err);
+    CHECK(rc == PF_OK, "reference: %s", err.msg);
+    if (rc == PF_OK) {
+        pf_metrics_t m;
+        CHECK(pf_metrics_compare(&img, &ref, &m, &err) == PF_OK, "compare: %s", err.msg);
+        printf("%s: relMSE %.5f (bound %.4f), RMSE %.5f, luminance ratio %.4f (bound 1 +- %.3f), %.1f s\n", scene_path,
+               m.relmse, max_relmse, m.rmse, m.lum_ratio, max_lum_dev, sum.total_s);
+        CHECK(m.relmse <= max_relmse, "%s: relMSE %.5f above %.4f", scene_path, m.relmse, max_relmse);
+        CHECK(fabs(m.lum_ratio - 1.0) <= max_lum_dev, "%s: luminance ratio %.4f", scene_path, m.lum_ratio);
+        CHECK(sum.bad_pixels == 0, "%s: %zu non-finite or negative channels", scene_path, sum.bad_pixels);
+        pf_image_free(&ref);
+        pf_image_free(&img);
+    }
+    pf_scene_destroy(&scene);
+}
+
+int main(int argc, char **argv)
+{
+    pf_log_set_level(PF_LOG_WARN);
+    const char *what = argc > 1 ? argv[1] : "all";
+    int all = !strcmp(what, "all");
+    if (all || !strcmp(what, "furnace"))
+        s_test_furnace();
+    if (all || !strcmp(what, "determinism"))
+        s_test_determinism();
+    if (all || !strcmp(what, "accuracy")) {
+        /* Measured here: 0.0024 / 0.9935 and 0.0023 / 1.0030. */
+        s_accuracy("scenes/cornell-box/scene.json", "tests/data/references/cornell-box-128.pfm", 0.0035, 0.015);
+        s_accuracy("scenes/cornell-spheres/scene.json", "tests/data/references/cornell-spheres-128.pfm", 0.0035, 0.015);
+    }
+    printf("%d passed, %d failed\n", s_pass, s_fail);
+    return s_fail ? 1 : 0;
+}
