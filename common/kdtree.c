@@ -1,2 +1,633 @@
-/* kdtree.c: not written yet. */
-typedef int pf_placeholder_kdtree;
+/* kdtree.c: the photon maps' static kd-tree (see kdtree.h for the layout).
+ *
+ * The tree owns two arrays: the photons, reordered into the implicit median
+ * layout, and one split-axis byte per photon; plus the bounds of all positions.
+ * It is built once, by one caller thread (the top levels of the build run as
+ * OpenMP tasks), and then only read: any number of threads may query it at
+ * once, and queries allocate nothing.
+ *
+ * Determinism. The build orders photons by the key (coordinate on the split
+ * axis, input index), a total order in which no two photons are equal, so the
+ * median of a range, the sets that go left and right, and therefore the whole
+ * layout are a function of the input alone: not of the selection algorithm's
+ * internal order, nor of which thread built which subtree. Coordinates enter
+ * the key through an order-preserving map of their bits in which -0 and +0 are
+ * equal (so they tie on the index, as equal coordinates should) and NaN has a
+ * fixed place, so even bad input cannot make the comparison inconsistent.
+ *
+ * Distances. A squared distance is computed as the float differences squared
+ * and summed in double, then rounded once to float. The products are exact in
+ * double, so the value does not depend on whether the compiler contracts
+ * multiply-adds into FMA, and tests can reproduce it bit for bit. The rounding
+ * is monotone, so the squared distance to a split plane is a true lower bound
+ * of the distance of every photon beyond it, which is what pruning needs.
+ *
+ * Positions are expected to be finite (pf_kdtree_from_layout enforces it; the
+ * photon tracer rejects NaN before storing), but the build cannot refuse them
+ * (its contract has no such failure), so bad ones are contained: a photon with
+ * a NaN coordinate has a NaN distance and is never found, and queries never
+ * prune on a NaN split plane, so it hides no other photon. A query point or
+ * radius that is NaN finds nothing. */
+#include "common/kdtree.h"
+
+#include <math.h>
+#include <stddef.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "common/status.h"
+
+/* Ranges at least this large are split by a separate OpenMP task; below it a
+ * task costs more than it saves. The result does not depend on it. */
+#define S_TASK_MIN ((size_t)1 << 15)
+/* Builds this small run on the calling thread alone. */
+#define S_PARALLEL_MIN ((size_t)1 << 17)
+/* n < 2^31 keeps every index in a uint32_t with bit 31 free, and the tree at
+ * most 31 levels deep, so traversal stacks of this size cannot overflow. */
+#define S_MAX_N ((size_t)1 << 31)
+#define S_STACK 64
+/* The work one selection may spend, in multiples of its range's size, before
+ * it falls back to heapsort (typical use is under 3). The test lowers it to
+ * exercise the fallback. */
+#ifndef PF_KDTREE_SELECT_BUDGET
+#define PF_KDTREE_SELECT_BUDGET 8
+#endif
+
+struct pf_kdtree {
+    pf_photon_t *photons;
+    uint8_t *axes;
+    size_t n;
+    pf_vec3 lo, hi;
+};
+
+/* A photon as the build sees it: its coordinates already mapped to ordered
+ * integer keys (s_fkey) and its input index, 16 bytes, so that the many
+ * selection passes move half as much memory as whole photons and compare
+ * integers. */
+typedef struct s_item {
+    uint32_t k[3];
+    uint32_t idx;
+} s_item_t;
+
+/* Maps a float to an unsigned integer with the same order (IEEE total order on
+ * the bits), after turning -0 into +0 so that the two compare equal. */
+static inline uint32_t s_fkey(float f)
+{
+    f += 0.0f; /* -0 + +0 is +0 in round-to-nearest; not folded without -ffast-math */
+    uint32_t u;
+    memcpy(&u, &f, sizeof u);
+    uint32_t mask = (uint32_t)((int32_t)u >> 31) | 0x80000000u;
+    return u ^ mask;
+}
+
+/* The inverse of s_fkey (up to the sign of zero). */
+static inline float s_fkey_inv(uint32_t u)
+{
+    u ^= (u & 0x80000000u) ? 0x80000000u : 0xffffffffu;
+    float f;
+    memcpy(&f, &u, sizeof f);
+    return f;
+}
+
+/* The build order: coordinate key on the axis, then input index. */
+static inline uint64_t s_key(const s_item_t *it, int axis)
+{
+    return ((uint64_t)it->k[axis] << 32) | it->idx;
+}
+
+static inline void s_swap(s_item_t *a, s_item_t *b)
+{
+    s_item_t t = *a;
+    *a = *b;
+    *b = t;
+}
+
+static void s_insertion_sort(s_item_t *a, size_t lo, size_t hi, int axis)
+{
+    for (size_t i = lo + 1; i < hi; i++) {
+        s_item_t v = a[i];
+        uint64_t kv = s_key(&v, axis);
+        size_t j = i;
+        while (j > lo && s_key(&a[j - 1], axis) > kv) {
+            a[j] = a[j - 1];
+            j--;
+        }
+        a[j] = v;
+    }
+}
+
+static void s_sift_items(s_item_t *a, size_t root, size_t n, int axis)
+{
+    for (;;) {
+        size_t child = 2 * root + 1;
+        if (child >= n)
+            return;
+        if (child + 1 < n && s_key(&a[child + 1], axis) > s_key(&a[child], axis))
+            child++;
+        if (s_key(&a[root], axis) >= s_key(&a[child], axis))
+            return;
+        s_swap(&a[root], &a[child]);
+        root = child;
+    }
+}
+
+/* Heapsort of a[0, n): the fallback that bounds quickselect's worst case. */
+static void s_heapsort_items(s_item_t *a, size_t n, int axis)
+{
+    for (size_t i = n / 2; i-- > 0;)
+        s_sift_items(a, i, n, axis);
+    for (size_t end = n; end-- > 1;) {
+        s_swap(&a[0], &a[end]);
+        s_sift_items(a, 0, end, axis);
+    }
+}
+
+/* Rearranges a[left, right] (inclusive) so that a[nth] holds the item of rank
+ * nth - left by key, with smaller keys before it and larger after. This is
+ * Floyd and Rivest's SELECT (CACM 1975, Algorithm 489): on large ranges it
+ * first selects within a sample around nth, which leaves a pivot very close to
+ * the wanted rank, so one partition discards most of the range; about 1.5 n
+ * comparisons for a median where median-of-3 quickselect needs about 2.75 n.
+ * The pivots change only the speed, never the result, as keys are unique. A
+ * work budget bounds the worst case: past it the range is heapsorted. */
+static void s_select(s_item_t *a, ptrdiff_t left, ptrdiff_t right, ptrdiff_t nth, int axis)
+{
+    size_t budget = PF_KDTREE_SELECT_BUDGET * (size_t)(right - left + 1);
+    while (right - left > 16) {
+        size_t size = (size_t)(right - left + 1);
+        if (size > budget) {
+            s_heapsort_items(a + left, size, axis);
+            return;
+        }
+        budget -= size;
+        if (size > 600) {
+            double n = (double)size, i = (double)(nth - left + 1);
+            double z = log(n), s = 0.5 * exp(2.0 * z / 3.0);
+            double sd = 0.5 * sqrt(z * s * (n - s) / n) * (i < n / 2 ? -1.0 : 1.0);
+            ptrdiff_t sl = (ptrdiff_t)((double)nth - i * s / n + sd);
+            ptrdiff_t sr = (ptrdiff_t)((double)nth + (n - i) * s / n + sd);
+            s_select(a, sl > left ? sl : left, sr < right ? sr : right, nth, axis);
+        }
+        /* Partition around t = a[nth]'s key; a[left] and a[right] are set up
+         * as sentinels, one at most t and one at least t. */
+        uint64_t t = s_key(&a[nth], axis);
+        ptrdiff_t i = left, j = right;
+        s_swap(&a[left], &a[nth]);
+        if (s_key(&a[right], axis) > t)
+            s_swap(&a[right], &a[left]);
+        while (i < j) {
+            s_swap(&a[i], &a[j]);
+            i++;
+            j--;
+            while (s_key(&a[i], axis) < t)
+                i++;
+            while (s_key(&a[j], axis) > t)
+                j--;
+        }
+        if (s_key(&a[left], axis) == t) {
+            s_swap(&a[left], &a[j]);
+        } else {
+            j++;
+            s_swap(&a[j], &a[right]);
+        }
+        /* Now a[j] holds t, smaller keys are before it and larger after. */
+        if (j <= nth)
+            left = j + 1;
+        if (nth <= j)
+            right = j - 1;
+    }
+    if (right > left)
+        s_insertion_sort(a, (size_t)left, (size_t)right + 1, axis);
+}
+
+/* The split axis of a range: the widest extent of its positions' bounding box,
+ * the lowest axis on a tie. The box is found on the keys, whose order is the
+ * coordinates' order, and converted back to floats for the extents. */
+static int s_widest_axis(const s_item_t *a, size_t lo, size_t hi)
+{
+    uint32_t mn0 = UINT32_MAX, mn1 = UINT32_MAX, mn2 = UINT32_MAX;
+    uint32_t mx0 = 0, mx1 = 0, mx2 = 0;
+    for (size_t i = lo; i < hi; i++) {
+        mn0 = a[i].k[0] < mn0 ? a[i].k[0] : mn0;
+        mn1 = a[i].k[1] < mn1 ? a[i].k[1] : mn1;
+        mn2 = a[i].k[2] < mn2 ? a[i].k[2] : mn2;
+        mx0 = a[i].k[0] > mx0 ? a[i].k[0] : mx0;
+        mx1 = a[i].k[1] > mx1 ? a[i].k[1] : mx1;
+        mx2 = a[i].k[2] > mx2 ? a[i].k[2] : mx2;
+    }
+    float e[3] = { s_fkey_inv(mx0) - s_fkey_inv(mn0), s_fkey_inv(mx1) - s_fkey_inv(mn1),
+                   s_fkey_inv(mx2) - s_fkey_inv(mn2) };
+    int axis = 0;
+    for (int k = 1; k < 3; k++) {
+        if (e[k] > e[axis])
+            axis = k;
+    }
+    return axis;
+}
+
+/* Lays out the subtree of a[lo, hi): the median by key goes to the middle,
+ * then both halves recursively. Large left halves become tasks. */
+static void s_build(s_item_t *a, uint8_t *axes, size_t lo, size_t hi)
+{
+    while (hi > lo) {
+        size_t m = lo + (hi - lo) / 2;
+        int axis = s_widest_axis(a, lo, hi);
+        if (hi - lo > 1)
+            s_select(a, (ptrdiff_t)lo, (ptrdiff_t)hi - 1, (ptrdiff_t)m, axis);
+        axes[m] = (uint8_t)axis;
+        if (m - lo >= S_TASK_MIN) {
+            size_t llo = lo, lhi = m;
+#pragma omp task default(none) firstprivate(a, axes, llo, lhi)
+            s_build(a, axes, llo, lhi);
+        } else {
+            s_build(a, axes, lo, m);
+        }
+        lo = m + 1;
+    }
+}
+
+/* Moves photon perm[i] to slot i for all i. A gather into a new array issues
+ * independent loads, an order of magnitude faster than following the
+ * permutation's cycles in place, whose loads depend on each other; the
+ * in-place way is the fallback when memory for the copy is short. Returns the
+ * array now holding the photons (ph itself, or the copy with ph freed). */
+static pf_photon_t *s_permute(pf_photon_t *ph, uint32_t *perm, size_t n)
+{
+    pf_photon_t *out = malloc((n ? n : 1) * sizeof *out);
+    if (out) {
+        for (size_t i = 0; i < n; i++)
+            out[i] = ph[perm[i]];
+        free(ph);
+        return out;
+    }
+    /* Bit 31 of perm[j] (free, as n < 2^31) marks slot j as done. */
+    const uint32_t done = 0x80000000u;
+    for (size_t i = 0; i < n; i++) {
+        if (perm[i] & done)
+            continue;
+        pf_photon_t first = ph[i];
+        size_t j = i;
+        for (;;) {
+            size_t from = perm[j];
+            perm[j] |= done;
+            if (from == i) {
+                ph[j] = first;
+                break;
+            }
+            ph[j] = ph[from];
+            j = from;
+        }
+    }
+    return ph;
+}
+
+static void s_bounds(const pf_photon_t *ph, size_t n, pf_vec3 *lo, pf_vec3 *hi)
+{
+    float mn[3] = { INFINITY, INFINITY, INFINITY };
+    float mx[3] = { -INFINITY, -INFINITY, -INFINITY };
+    for (size_t i = 0; i < n; i++) {
+        for (int k = 0; k < 3; k++) {
+            float v = ph[i].pos[k];
+            mn[k] = v < mn[k] ? v : mn[k];
+            mx[k] = v > mx[k] ? v : mx[k];
+        }
+    }
+    *lo = pf_v3(mn[0], mn[1], mn[2]);
+    *hi = pf_v3(mx[0], mx[1], mx[2]);
+}
+
+static pf_kdtree_t *s_make(pf_photon_t *ph, uint8_t *axes, size_t n)
+{
+    pf_kdtree_t *self = malloc(sizeof *self);
+    if (!self)
+        return NULL;
+    self->photons = ph;
+    self->axes = axes;
+    self->n = n;
+    s_bounds(ph, n, &self->lo, &self->hi);
+    return self;
+}
+
+pf_kdtree_t *pf_kdtree_build(pf_photon_t **photons_p, size_t n)
+{
+    PF_CHECK(photons_p);
+    pf_photon_t *ph = *photons_p;
+    *photons_p = NULL;
+    PF_CHECK(n == 0 || ph);
+    uint8_t *axes = NULL;
+    s_item_t *items = NULL;
+    if (n >= S_MAX_N)
+        goto fail;
+    /* One byte even when empty, so that pf_kdtree_axes is never NULL. */
+    axes = malloc(n ? n : 1);
+    items = malloc((n ? n : 1) * sizeof *items);
+    if (!axes || !items)
+        goto fail;
+    for (size_t i = 0; i < n; i++) {
+        for (int a = 0; a < 3; a++)
+            items[i].k[a] = s_fkey(ph[i].pos[a]);
+        items[i].idx = (uint32_t)i;
+    }
+    if (n >= S_PARALLEL_MIN) {
+#pragma omp parallel default(none) shared(items, axes, n)
+#pragma omp single
+        s_build(items, axes, 0, n);
+        /* The implicit barrier at the end of the region waits for all tasks. */
+    } else {
+        s_build(items, axes, 0, n);
+    }
+    /* Keep only the permutation (4 of the 16 bytes per photon), packed at
+     * the front of the items' memory, so that less is held during the
+     * permutation; slot i is written after items[i] was read. */
+    uint32_t *perm = (uint32_t *)items;
+    for (size_t i = 0; i < n; i++) {
+        uint32_t idx = items[i].idx;
+        perm[i] = idx;
+    }
+    uint32_t *smaller = realloc(perm, (n ? n : 1) * sizeof *perm);
+    perm = smaller ? smaller : perm;
+    items = NULL;
+    ph = s_permute(ph, perm, n);
+    free(perm);
+    pf_kdtree_t *self = s_make(ph, axes, n);
+    if (!self)
+        goto fail;
+    return self;
+fail:
+    free(items);
+    free(axes);
+    free(ph);
+    return NULL;
+}
+
+/* Checks the kd ordering in O(n): every photon must lie inside the box that
+ * its ancestors' split planes leave for it (left of a node: coordinate <= the
+ * node's on its axis; right: >=). That is the same set of constraints as
+ * checking every node against its whole subtree. */
+static int s_layout_ok(const pf_photon_t *ph, const uint8_t *axes, size_t n)
+{
+    struct {
+        uint32_t lo, hi;
+        float bmin[3], bmax[3];
+    } stack[S_STACK];
+    int sp = 0;
+    uint32_t lo = 0, hi = (uint32_t)n;
+    float bmin[3] = { -INFINITY, -INFINITY, -INFINITY };
+    float bmax[3] = { INFINITY, INFINITY, INFINITY };
+    for (;;) {
+        while (lo < hi) {
+            uint32_t m = lo + (hi - lo) / 2;
+            const float *p = ph[m].pos;
+            for (int k = 0; k < 3; k++) {
+                if (!(p[k] >= bmin[k] && p[k] <= bmax[k]))
+                    return 0;
+            }
+            int a = axes[m];
+            if (m + 1 < hi) {
+                PF_CHECK(sp < S_STACK);
+                stack[sp].lo = m + 1;
+                stack[sp].hi = hi;
+                memcpy(stack[sp].bmin, bmin, sizeof bmin);
+                memcpy(stack[sp].bmax, bmax, sizeof bmax);
+                stack[sp].bmin[a] = p[a];
+                sp++;
+            }
+            bmax[a] = p[a];
+            hi = m;
+        }
+        if (sp == 0)
+            return 1;
+        sp--;
+        lo = stack[sp].lo;
+        hi = stack[sp].hi;
+        memcpy(bmin, stack[sp].bmin, sizeof bmin);
+        memcpy(bmax, stack[sp].bmax, sizeof bmax);
+    }
+}
+
+pf_kdtree_t *pf_kdtree_from_layout(pf_photon_t **photons_p, uint8_t **axes_p, size_t n)
+{
+    PF_CHECK(photons_p && axes_p);
+    pf_photon_t *ph = *photons_p;
+    uint8_t *axes = *axes_p;
+    *photons_p = NULL;
+    *axes_p = NULL;
+    if (n >= S_MAX_N || (n > 0 && (!ph || !axes)))
+        goto fail;
+    for (size_t i = 0; i < n; i++) {
+        if (axes[i] > 2)
+            goto fail;
+        if (!isfinite(ph[i].pos[0]) || !isfinite(ph[i].pos[1]) || !isfinite(ph[i].pos[2]))
+            goto fail;
+    }
+    if (!s_layout_ok(ph, axes, n))
+        goto fail;
+    if (!axes) {
+        axes = malloc(1);
+        if (!axes)
+            goto fail;
+    }
+    pf_kdtree_t *self = s_make(ph, axes, n);
+    if (!self)
+        goto fail;
+    return self;
+fail:
+    free(ph);
+    free(axes);
+    return NULL;
+}
+
+void pf_kdtree_destroy(pf_kdtree_t **self_p)
+{
+    if (!self_p || !*self_p)
+        return;
+    pf_kdtree_t *self = *self_p;
+    free(self->photons);
+    free(self->axes);
+    free(self);
+    *self_p = NULL;
+}
+
+size_t pf_kdtree_size(const pf_kdtree_t *self) { return self->n; }
+const pf_photon_t *pf_kdtree_photons(const pf_kdtree_t *self) { return self->photons; }
+const uint8_t *pf_kdtree_axes(const pf_kdtree_t *self) { return self->axes; }
+
+void pf_kdtree_bounds(const pf_kdtree_t *self, pf_vec3 *lo, pf_vec3 *hi)
+{
+    *lo = self->lo;
+    *hi = self->hi;
+}
+
+/* Squared distance, contraction-proof; see the note at the top of the file. */
+static inline float s_dist2(const float q[3], const float p[3])
+{
+    double dx = q[0] - p[0], dy = q[1] - p[1], dz = q[2] - p[2];
+    return (float)(dx * dx + dy * dy + dz * dz);
+}
+
+/* The results heap is a max-heap on (d2, index): its root is the worst of the
+ * k kept so far, the one a better candidate replaces. */
+static inline int s_worse(const pf_knn_t *a, const pf_knn_t *b)
+{
+    return a->d2 > b->d2 || (a->d2 == b->d2 && a->index > b->index);
+}
+
+static void s_sift_down(pf_knn_t *h, size_t root, size_t n)
+{
+    pf_knn_t v = h[root];
+    for (;;) {
+        size_t child = 2 * root + 1;
+        if (child >= n)
+            break;
+        if (child + 1 < n && s_worse(&h[child + 1], &h[child]))
+            child++;
+        if (!s_worse(&h[child], &v))
+            break;
+        h[root] = h[child];
+        root = child;
+    }
+    h[root] = v;
+}
+
+static void s_sift_up(pf_knn_t *h, size_t i)
+{
+    pf_knn_t v = h[i];
+    while (i > 0) {
+        size_t parent = (i - 1) / 2;
+        if (!s_worse(&v, &h[parent]))
+            break;
+        h[i] = h[parent];
+        i = parent;
+    }
+    h[i] = v;
+}
+
+typedef struct s_entry {
+    uint32_t lo, hi;
+    float d2; /* squared distance from the query to the range's split plane */
+} s_entry_t;
+
+/* A query nothing can satisfy: a NaN point, or a NaN or negative radius.
+ * Caught up front because NaN comparisons would otherwise prune nothing. */
+static inline int s_hopeless(pf_vec3 x, float r2)
+{
+    return isnan(x.x) || isnan(x.y) || isnan(x.z) || !(r2 >= 0.0f);
+}
+
+/* The heap lives in out itself, so k has no limit and nothing is allocated.
+ * A subtree is skipped only when its plane is strictly farther than the
+ * current bound (a photon exactly at the bound may still win on index), and
+ * never when that distance is NaN. */
+size_t pf_kdtree_knn(const pf_kdtree_t *self, pf_vec3 x, size_t k, float max_r2, pf_knn_t *out)
+{
+    if (!self || self->n == 0 || k == 0 || s_hopeless(x, max_r2))
+        return 0;
+    const pf_photon_t *ph = self->photons;
+    const uint8_t *axes = self->axes;
+    const float q[3] = { x.x, x.y, x.z };
+    size_t count = 0;
+    float bound = max_r2; /* max_r2 until k are held, then the worst held d2 */
+    s_entry_t stack[S_STACK];
+    int sp = 0;
+    uint32_t lo = 0, hi = (uint32_t)self->n;
+    for (;;) {
+        while (lo < hi) {
+            uint32_t m = lo + (hi - lo) / 2;
+            const float *p = ph[m].pos;
+            float d2 = s_dist2(q, p);
+            if (d2 <= bound) {
+                pf_knn_t c = { m, d2 };
+                if (count < k) {
+                    out[count] = c;
+                    s_sift_up(out, count);
+                    if (++count == k)
+                        bound = out[0].d2;
+                } else if (s_worse(&out[0], &c)) {
+                    out[0] = c;
+                    s_sift_down(out, 0, k);
+                    bound = out[0].d2;
+                }
+            }
+            int a = axes[m];
+            float diff = q[a] - p[a];
+            float plane_d2 = diff * diff;
+            uint32_t flo, fhi;
+            if (diff < 0.0f) {
+                flo = m + 1;
+                fhi = hi;
+                hi = m;
+            } else {
+                flo = lo;
+                fhi = m;
+                lo = m + 1;
+            }
+            if (flo < fhi && !(plane_d2 > bound)) {
+                PF_DCHECK(sp < S_STACK);
+                stack[sp++] = (s_entry_t){ flo, fhi, plane_d2 };
+            }
+        }
+        /* Entries pushed before the bound shrank may now be out of reach. */
+        do {
+            if (sp == 0)
+                goto sort;
+            sp--;
+        } while (stack[sp].d2 > bound);
+        lo = stack[sp].lo;
+        hi = stack[sp].hi;
+    }
+sort:
+    /* Heapsort the max-heap in place: ascending by (d2, index). */
+    for (size_t end = count; end-- > 1;) {
+        pf_knn_t t = out[0];
+        out[0] = out[end];
+        out[end] = t;
+        s_sift_down(out, 0, end);
+    }
+    return count;
+}
+
+size_t pf_kdtree_radius(const pf_kdtree_t *self, pf_vec3 x, float r2, pf_knn_t *out, size_t cap)
+{
+    if (!self || self->n == 0 || s_hopeless(x, r2))
+        return 0;
+    const pf_photon_t *ph = self->photons;
+    const uint8_t *axes = self->axes;
+    const float q[3] = { x.x, x.y, x.z };
+    size_t count = 0;
+    s_entry_t stack[S_STACK];
+    int sp = 0;
+    uint32_t lo = 0, hi = (uint32_t)self->n;
+    for (;;) {
+        while (lo < hi) {
+            uint32_t m = lo + (hi - lo) / 2;
+            const float *p = ph[m].pos;
+            float d2 = s_dist2(q, p);
+            if (d2 <= r2) {
+                if (count < cap)
+                    out[count] = (pf_knn_t){ m, d2 };
+                count++;
+            }
+            int a = axes[m];
+            float diff = q[a] - p[a];
+            uint32_t flo, fhi;
+            if (diff < 0.0f) {
+                flo = m + 1;
+                fhi = hi;
+                hi = m;
+            } else {
+                flo = lo;
+                fhi = m;
+                lo = m + 1;
+            }
+            if (flo < fhi && !(diff * diff > r2)) {
+                PF_DCHECK(sp < S_STACK);
+                stack[sp++] = (s_entry_t){ flo, fhi, 0.0f };
+            }
+        }
+        if (sp == 0)
+            return count;
+        sp--;
+        lo = stack[sp].lo;
+        hi = stack[sp].hi;
+    }
+}
