@@ -231,3 +231,118 @@ int pf_lights_emit(const pf_lights_t *self, const pf_scene_t *scene, const float
     out->flux = pf_scale(l->intensity, pf_spot_falloff(l, local.z) / (pdf * (float)pmf));
     return 1;
 }
+
+int pf_specular_targets(const pf_scene_t *scene, pf_target_t **out)
+{
+    *out = NULL;
+    size_t cap = scene->nmeshes + scene->nspheres, n = 0;
+    if (cap == 0)
+        return 0;
+    pf_target_t *t = malloc(cap * sizeof *t);
+    if (!t)
+        return PF_ENOMEM;
+    for (size_t m = 0; m < scene->nmeshes; m++) {
+        const pf_mesh_t *mesh = &scene->meshes[m];
+        pf_vec3 lo = pf_v3s(FLT_MAX), hi = pf_v3s(-FLT_MAX);
+        for (size_t i = 0; i < mesh->ntris; i++) {
+            if (scene->mats[mesh->mat[i]].type == PF_MAT_DIFFUSE)
+                continue;
+            for (int k = 0; k < 3; k++) {
+                lo = pf_vmin(lo, mesh->pos[mesh->idx[3 * i + k]]);
+                hi = pf_vmax(hi, mesh->pos[mesh->idx[3 * i + k]]);
+            }
+        }
+        if (lo.x > hi.x)
+            continue;
+        pf_vec3 c = pf_scale(pf_add(lo, hi), 0.5f);
+        /* Half the box diagonal, widened a little for the rounding above. */
+        t[n++] = (pf_target_t){ c, 0.5f * pf_len(pf_sub(hi, lo)) * 1.001f + 1e-6f };
+    }
+    for (size_t i = 0; i < scene->nspheres; i++) {
+        const pf_sphere_t *sp = &scene->spheres[i];
+        if (scene->mats[sp->mat].type != PF_MAT_DIFFUSE)
+            t[n++] = (pf_target_t){ sp->center, sp->radius * 1.001f };
+    }
+    if (n == 0) {
+        free(t);
+        return 0;
+    }
+    *out = t;
+    return (int)n;
+}
+
+/* The cone from p that holds target t: axis and cos of the half-angle; a
+ * point inside the sphere sees the whole sphere of directions (cos = -1). */
+static void s_cone(pf_vec3 p, const pf_target_t *t, pf_vec3 *axis, float *cos_max, float *solid)
+{
+    pf_vec3 d = pf_sub(t->center, p);
+    float dist2 = pf_len2(d);
+    float r2 = t->radius * t->radius;
+    if (dist2 <= r2) {
+        *axis = pf_v3(0, 0, 1);
+        *cos_max = -1.0f;
+        *solid = 4.0f * PF_PI;
+        return;
+    }
+    float dist = sqrtf(dist2);
+    *axis = pf_scale(d, 1.0f / dist);
+    float sin2 = r2 / dist2;
+    float c = sqrtf(fmaxf(0.0f, 1.0f - sin2));
+    *cos_max = c;
+    /* 1 - cos without cancellation for small cones. */
+    *solid = 2.0f * PF_PI * (sin2 / (1.0f + c));
+}
+
+int pf_lights_emit_targeted(const pf_lights_t *self, const pf_scene_t *scene, const pf_target_t *targets,
+                            size_t ntargets, const float u[6], pf_emission_t *out)
+{
+    if (self->n == 0 || ntargets == 0)
+        return 0;
+    double pmf;
+    const s_entry *e = &self->entries[s_pick(self, u[0], &pmf)];
+    pf_vec3 p, n = pf_v3s(0.0f), perr = pf_v3s(0.0f);
+    const pf_light_t *l = NULL;
+    if (e->kind == S_AREA) {
+        s_tri_point(scene, e, u[1], u[2], &p, &n, &perr);
+    } else {
+        l = &scene->lights[e->light];
+        p = l->pos;
+    }
+    size_t ti = (size_t)(u[3] * (float)ntargets);
+    if (ti >= ntargets)
+        ti = ntargets - 1;
+    pf_vec3 axis;
+    float cos_max, solid;
+    s_cone(p, &targets[ti], &axis, &cos_max, &solid);
+    pf_vec3 w = cos_max <= -1.0f ? pf_sample_sphere(u[4], u[5]) : pf_to_world(pf_sample_cone(u[4], u[5], cos_max), axis);
+    /* Mixture pdf over every target whose cone holds w. */
+    double pdf = 0.0;
+    for (size_t k = 0; k < ntargets; k++) {
+        pf_vec3 ak;
+        float ck, sk;
+        s_cone(p, &targets[k], &ak, &ck, &sk);
+        if (ck <= -1.0f || pf_dot(w, ak) >= ck)
+            pdf += 1.0 / (double)sk;
+    }
+    pdf /= (double)ntargets;
+    if (!(pdf > 0.0))
+        return 0;
+    pf_vec3 radiant; /* emitted radiance x cos (area) or intensity (point, spot) towards w */
+    if (e->kind == S_AREA) {
+        float cos_l = pf_dot(w, n);
+        if (cos_l <= 0.0f)
+            return 0;
+        pf_vec3 le = scene->mats[scene->meshes[e->mesh].mat[e->tri]].le;
+        radiant = pf_scale(le, cos_l * e->area); /* divided by pdf_area = 1 / area */
+    } else {
+        float f = l->type == PF_LIGHT_SPOT ? pf_spot_falloff(l, pf_dot(w, l->dir)) : 1.0f;
+        if (f <= 0.0f)
+            return 0;
+        radiant = pf_scale(l->intensity, f);
+    }
+    out->ray = (pf_ray_t){ p, w };
+    out->flux = pf_scale(radiant, (float)(1.0 / (pdf * pmf)));
+    out->perr = perr;
+    out->n = n;
+    return 1;
+}

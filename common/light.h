@@ -49,6 +49,26 @@ typedef struct pf_emission {
  * u[0..4]. Returns 0 if the table is empty. */
 int pf_lights_emit(const pf_lights_t *self, const pf_scene_t *scene, const float u[5], pf_emission_t *out);
 
+/* A bounding sphere of specular geometry that caustic photons are aimed at. */
+typedef struct pf_target {
+    pf_vec3 center;
+    float radius;
+} pf_target_t;
+
+/* Bounding spheres of the scene's mirror and glass geometry: one per mesh
+ * (over its specular triangles) and one per specular sphere. *out is
+ * malloc'd (NULL when there are none). Returns the count, or PF_ENOMEM. */
+int pf_specular_targets(const pf_scene_t *scene, pf_target_t **out);
+
+/* Emits a photon aimed at the targets: an emitter by power, a point on it,
+ * then a direction uniform in the cone of a target chosen uniformly. The
+ * flux divides by the mixture pdf of all cones containing the direction, so
+ * the estimate is unbiased for every path that reaches a target (and every
+ * specular surface lies inside one). Returns 0 when the sample carries nothing
+ * (direction behind a one-sided emitter). Uses u[0..5]. */
+int pf_lights_emit_targeted(const pf_lights_t *self, const pf_scene_t *scene, const pf_target_t *targets,
+                            size_t ntargets, const float u[6], pf_emission_t *out);
+
 /* Smooth spot falloff: 1 inside cos_inner, 0 outside cos_outer. */
 float pf_spot_falloff(const pf_light_t *l, float cos_theta);
 

@@ -5,8 +5,12 @@
  * survival probability, so expected power is conserved), stored at every hit
  * on a non-specular surface, the first included (the photon is stored before
  * roulette decides, so no power is lost at the first diffuse hit).
- * Caustic photons: a separate emission; only paths L S+ D are stored, at the
- * first non-specular hit, after which the photon ends. Power of every stored
+ * Caustic photons: a separate emission aimed at the bounding spheres of the
+ * mirror and glass geometry (pf_lights_emit_targeted: the flux divides by the
+ * cone-mixture pdf, so the estimate stays unbiased while no photon is spent
+ * on directions that cannot reach a specular surface); only paths L S+ D are
+ * stored, at the first non-specular hit, after which the photon ends. With no
+ * specular surface there is no caustic map. Power of every stored
  * photon is the emitted flux divided by the number emitted in its map.
  *
  * Determinism: photons are traced in blocks of PF_PHOTON_BLOCK consecutive
@@ -51,6 +55,8 @@ typedef struct s_ctx {
     const pf_accel_t *accel;
     const pf_lights_t *lights;
     int max_depth;
+    const pf_target_t *targets; /* specular bounding spheres caustic photons aim at */
+    size_t ntargets;
 } s_ctx;
 
 /* Traces photon `index` of the map (caustic or global) into buf. Returns the
@@ -58,11 +64,12 @@ typedef struct s_ctx {
 static int s_trace(const s_ctx *c, uint64_t seed, uint64_t index, uint64_t emitted, int caustic, s_buf *buf)
 {
     pf_rng_t rng = pf_rng_make(seed, caustic ? PF_STREAM_CAUSTIC_PHOTON : PF_STREAM_GLOBAL_PHOTON, index, 0);
-    float u[5];
-    for (int i = 0; i < 5; i++)
+    float u[6];
+    for (int i = 0; i < 6; i++)
         u[i] = pf_rng_float(&rng);
     pf_emission_t em;
-    if (!pf_lights_emit(c->lights, c->scene, u, &em))
+    if (caustic ? !pf_lights_emit_targeted(c->lights, c->scene, c->targets, c->ntargets, u, &em)
+                : !pf_lights_emit(c->lights, c->scene, u, &em))
         return 0;
     pf_vec3 power = pf_scale(em.flux, (float)(1.0 / (double)emitted));
     pf_ray_t ray = em.ray;
@@ -198,7 +205,16 @@ int pf_photon_pass(const pf_scene_t *scene, const pf_accel_t *accel, const pf_li
     memset(maps, 0, sizeof *maps);
     memset(stats, 0, sizeof *stats);
     int threads = settings->threads > 0 ? settings->threads : omp_get_num_procs();
-    s_ctx c = { scene, accel, lights, settings->photon_max_depth };
+    s_ctx c = { scene, accel, lights, settings->photon_max_depth, NULL, 0 };
+    pf_target_t *targets = NULL;
+    int nt = pf_specular_targets(scene, &targets);
+    if (nt < 0)
+        return nt;
+    c.targets = targets;
+    c.ntargets = (size_t)nt;
+    uint64_t caustic_photons = nt > 0 ? settings->caustic_photons : 0;
+    if (nt == 0 && settings->caustic_photons)
+        pf_info("caustic map skipped: no mirror or glass surfaces");
     pf_vec3 lo, hi;
     pf_scene_bounds(scene, &lo, &hi);
     float diag = pf_len(pf_sub(hi, lo));
@@ -210,7 +226,7 @@ int pf_photon_pass(const pf_scene_t *scene, const pf_accel_t *accel, const pf_li
     maps->caustic_r2 = cr * cr;
     maps->irradiance_r2 = gr * gr;
     maps->global_emitted = settings->photons;
-    maps->caustic_emitted = settings->caustic_photons;
+    maps->caustic_emitted = caustic_photons;
 
     double t0 = pf_now();
     pf_photon_t *gp = NULL, *cp = NULL;
@@ -218,8 +234,9 @@ int pf_photon_pass(const pf_scene_t *scene, const pf_accel_t *accel, const pf_li
     int rc = PF_OK;
     if (settings->photons)
         rc = s_trace_map(&c, settings->seed, settings->photons, 0, threads, &gp, &gn, &stats->rejected);
-    if (rc == PF_OK && settings->caustic_photons)
-        rc = s_trace_map(&c, settings->seed, settings->caustic_photons, 1, threads, &cp, &cn, &stats->rejected);
+    if (rc == PF_OK && caustic_photons)
+        rc = s_trace_map(&c, settings->seed, caustic_photons, 1, threads, &cp, &cn, &stats->rejected);
+    free(targets);
     double t1 = pf_now();
     stats->trace_s = t1 - t0;
     if (rc != PF_OK) {
