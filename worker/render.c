@@ -3,10 +3,12 @@
  * precomputed irradiance (Jensen 2001, ch. 9; Christensen 1999).
  *
  * Parameters (pf_settings_t; defaults in scene.c):
- *   spp            4    camera samples per pixel, jittered in the pixel (box filter)
- *   light_samples  2    shadow rays per visible non-specular point
- *   gather         64   final-gather rays per visible diffuse point, scaled by
- *                       the path's throughput (at least 1) below specular splits
+ *   spp            16   camera samples per pixel, stratified k x k when spp = k^2 (box filter)
+ *   light_samples  1    shadow rays per camera sample at a non-specular point
+ *   gather         16   final-gather rays per camera sample at a diffuse point, scaled by
+ *                       the path's throughput (at least 1) below specular splits;
+ *                       many camera samples with few gather rays each beat the
+ *                       reverse at equal cost (the light's edges alias otherwise)
  *   max_depth      16   mirror/glass recursion depth of camera paths
  *   caustic_k      80   photons per caustic estimate, cone filter, radius <= caustic_radius
  *   global_k       100  photons per irradiance estimate (precomputed at every
