@@ -1,0 +1,714 @@
+/* messages.c: the message codecs of the photonfarm protocol (the layout of
+ * every message is in messages.h), the shared settings field group, and the
+ * build fingerprint of the handshake.
+ *
+ * Decoding is the boundary where bytes from the network enter, so it trusts
+ * nothing: a decode context wraps the bounds-checked cursor of wire.c and, on
+ * the first problem, writes one sentence into why naming the message type and
+ * the field ("JOB: settings.spp 0 is out of range 1..2147483647", "TILE: the
+ * frame ends inside h"), then every later read is a no-op. Range rules are
+ * written once per type (s_check) and serve both sides: the encoder refuses
+ * to send what the decoder would refuse to receive (PF_EINVAL), so a bug shows
+ * up at the sender, where it can be found.
+ *
+ * Bodies on the wire, after the 16-byte header (str: u16 length + bytes):
+ *   HELLO       u16 protocol, u16 photon_size, u16 float_size, u16 map_version,
+ *               str git, u32 threads, str name
+ *   WELCOME     u32 worker_id, u32 heartbeat_ms
+ *   REFUSE      str reason
+ *   HEARTBEAT   u64 progress, u32 tiles_held
+ *   JOB         u64 scene_hash, scene_size, maps_hash, maps_size,
+ *               settings (80 bytes, below), u32 terms, u32 tile_size
+ *   BLOB_REQ    u64 hash, u64 offset, u32 credit
+ *   BLOB_CHUNK  u64 hash, u64 total, u64 offset, u32 len, len bytes
+ *   READY       u32 credit
+ *   TILE        u32 tile, attempt, x0, y0, w, h
+ *   RESULT      u32 tile, attempt, x0, y0, w, h, render_us, then w*h*3 f32
+ *               (RGB by row) to the end of the frame
+ *   JOB_END     (empty)
+ *   BYE         str reason
+ *
+ * Owns nothing: decoded chunk data and result pixels point into the frame.
+ * Reentrant; any thread may encode or decode. */
+#include "proto/messages.h"
+
+#include <inttypes.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "common/photon.h"
+#include "common/status.h"
+#include "proto/mapfile.h"
+#include "proto/wire.h"
+
+#ifndef PF_GIT_HASH
+#define PF_GIT_HASH "unknown"
+#endif
+
+/* Bounds of the range checks (see messages.h for what each field means). */
+#define S_MAX_IMAGE_SIDE 65536
+#define S_MAX_DEPTH 100000
+#define S_MAX_K 1024
+#define S_MAX_TILE_SIZE 256
+#define S_MAX_TERMS 31
+#define S_MAX_THREADS 4096
+#define S_MAX_HEARTBEAT_MS 60000
+#define S_MAX_READY_CREDIT 1024
+#define S_MAX_BLOB_CREDIT 64
+
+static const char *const s_type_names[] = {
+    [PF_MSG_HELLO] = "HELLO",         [PF_MSG_WELCOME] = "WELCOME", [PF_MSG_REFUSE] = "REFUSE",
+    [PF_MSG_HEARTBEAT] = "HEARTBEAT", [PF_MSG_JOB] = "JOB",         [PF_MSG_BLOB_REQ] = "BLOB_REQ",
+    [PF_MSG_BLOB_CHUNK] = "BLOB_CHUNK", [PF_MSG_READY] = "READY",   [PF_MSG_TILE] = "TILE",
+    [PF_MSG_RESULT] = "RESULT",       [PF_MSG_JOB_END] = "JOB_END", [PF_MSG_BYE] = "BYE",
+};
+
+const char *pf_msg_type_name(int type)
+{
+    if (type < 1 || type > PF_MSG_MAX_TYPE)
+        return "UNKNOWN";
+    return s_type_names[type];
+}
+
+/* Writes a sentence into why (which may be NULL). */
+static void s_whyf(char *why, size_t why_len, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
+static void s_whyf(char *why, size_t why_len, const char *fmt, ...)
+{
+    if (!why || why_len == 0)
+        return;
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(why, why_len, fmt, ap);
+    va_end(ap);
+}
+
+/* Encoders write field after field and stop at the first failure; W runs a
+ * writer only while rc (in the caller's scope) is still 0. */
+#define W(call)            \
+    do {                   \
+        if (rc == 0)       \
+            rc = (call);   \
+    } while (0)
+
+/* ---- fingerprint ---- */
+
+pf_fingerprint_t pf_fingerprint_self(void)
+{
+    pf_fingerprint_t fp;
+    memset(&fp, 0, sizeof fp);
+    fp.protocol = PF_PROTO_VERSION;
+    fp.photon_size = (uint16_t)sizeof(pf_photon_t);
+    fp.float_size = (uint16_t)sizeof(float);
+    fp.map_version = PF_MAPFILE_VERSION;
+    snprintf(fp.git, sizeof fp.git, "%s", PF_GIT_HASH);
+    return fp;
+}
+
+int pf_fingerprint_check(const pf_fingerprint_t *worker, const pf_fingerprint_t *coord, char *why, size_t why_len)
+{
+    /* Each difference that makes the two builds unable to share photon maps
+     * or messages, as one clause; all of them, so one refusal tells the whole
+     * story. */
+    char text[512];
+    size_t n = 0;
+    text[0] = '\0';
+#define S_CLAUSE(...)                                                              \
+    do {                                                                           \
+        if (n < sizeof text) {                                                     \
+            int w_ = snprintf(text + n, sizeof text - n, "%s", n ? "; " : "");     \
+            n += w_ > 0 ? (size_t)w_ : 0;                                          \
+        }                                                                          \
+        if (n < sizeof text) {                                                     \
+            int w_ = snprintf(text + n, sizeof text - n, __VA_ARGS__);             \
+            n += w_ > 0 ? (size_t)w_ : 0;                                          \
+        }                                                                          \
+    } while (0)
+    if (worker->protocol != coord->protocol)
+        S_CLAUSE("protocol version %u (worker) vs %u (coordinator)", (unsigned)worker->protocol,
+                 (unsigned)coord->protocol);
+    if (worker->photon_size != coord->photon_size)
+        S_CLAUSE("photon record of %u bytes (worker) vs %u bytes (coordinator)", (unsigned)worker->photon_size,
+                 (unsigned)coord->photon_size);
+    if (worker->float_size != coord->float_size)
+        S_CLAUSE("float of %u bytes (worker) vs %u bytes (coordinator)", (unsigned)worker->float_size,
+                 (unsigned)coord->float_size);
+    if (worker->map_version != coord->map_version)
+        S_CLAUSE("photon-map format version %u (worker) vs %u (coordinator)", (unsigned)worker->map_version,
+                 (unsigned)coord->map_version);
+#undef S_CLAUSE
+    if (n == 0) {
+        /* Builds from different commits with the same protocol and layouts
+         * work together; the caller may log the git hashes itself. */
+        s_whyf(why, why_len, "%s", "");
+        return PF_OK;
+    }
+    s_whyf(why, why_len, "incompatible builds: %s (worker build %.47s, coordinator build %.47s)", text,
+           worker->git, coord->git);
+    return PF_EMISMATCH;
+}
+
+/* ---- the settings field group ----
+ *
+ * On the wire, in this order (the declaration order of pf_settings_t), 80
+ * bytes; int fields travel as two's-complement i32:
+ *   i32 width, i32 height, i32 spp,
+ *   u64 photons, u64 caustic_photons,
+ *   i32 gather, i32 light_samples, i32 max_depth, i32 photon_max_depth,
+ *   i32 global_k, i32 caustic_k,
+ *   f32 caustic_radius, f32 global_radius,
+ *   i32 irradiance_stride, i32 threads,
+ *   u64 seed, f32 exposure
+ */
+
+static uint32_t s_u32_from_int(int v) { return (uint32_t)(int32_t)v; }
+
+/* The inverse of s_u32_from_int, spelled out: converting an out-of-range
+ * unsigned value to a signed type is implementation-defined in C. */
+static int s_int_from_u32(uint32_t u)
+{
+    if (u <= (uint32_t)INT32_MAX)
+        return (int)u;
+    return -(int)(~u) - 1;
+}
+
+int pf_wr_settings(pf_buf_t *b, const pf_settings_t *s)
+{
+    int rc = 0;
+    W(pf_wr_u32(b, s_u32_from_int(s->width)));
+    W(pf_wr_u32(b, s_u32_from_int(s->height)));
+    W(pf_wr_u32(b, s_u32_from_int(s->spp)));
+    W(pf_wr_u64(b, s->photons));
+    W(pf_wr_u64(b, s->caustic_photons));
+    W(pf_wr_u32(b, s_u32_from_int(s->gather)));
+    W(pf_wr_u32(b, s_u32_from_int(s->light_samples)));
+    W(pf_wr_u32(b, s_u32_from_int(s->max_depth)));
+    W(pf_wr_u32(b, s_u32_from_int(s->photon_max_depth)));
+    W(pf_wr_u32(b, s_u32_from_int(s->global_k)));
+    W(pf_wr_u32(b, s_u32_from_int(s->caustic_k)));
+    W(pf_wr_f32(b, s->caustic_radius));
+    W(pf_wr_f32(b, s->global_radius));
+    W(pf_wr_u32(b, s_u32_from_int(s->irradiance_stride)));
+    W(pf_wr_u32(b, s_u32_from_int(s->threads)));
+    W(pf_wr_u64(b, s->seed));
+    W(pf_wr_f32(b, s->exposure));
+    return rc;
+}
+
+/* A decode: the cursor, the message type's name for the sentence, and where
+ * the sentence goes. Only the first problem is reported. */
+typedef struct s_dec {
+    pf_rd_t r;
+    const char *type;
+    char *why;
+    size_t why_len;
+    int failed;
+} s_dec_t;
+
+static void s_fail(s_dec_t *d, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+static void s_fail(s_dec_t *d, const char *fmt, ...)
+{
+    pf_rd_fail(&d->r);
+    if (d->failed)
+        return;
+    d->failed = 1;
+    if (!d->why || d->why_len == 0)
+        return;
+    int n = snprintf(d->why, d->why_len, "%s: ", d->type);
+    if (n < 0 || (size_t)n >= d->why_len)
+        return;
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(d->why + n, d->why_len - (size_t)n, fmt, ap);
+    va_end(ap);
+}
+
+/* Before each read: the field must be whole in what is left. */
+static int s_need(s_dec_t *d, size_t n, const char *field)
+{
+    if (d->failed || d->r.err)
+        return 0;
+    if (d->r.left < n) {
+        s_fail(d, "the frame ends inside %s (%zu of %zu bytes left)", field, d->r.left, n);
+        return 0;
+    }
+    return 1;
+}
+
+static uint16_t s_u16(s_dec_t *d, const char *field) { return s_need(d, 2, field) ? pf_rd_u16(&d->r) : 0; }
+static uint32_t s_u32(s_dec_t *d, const char *field) { return s_need(d, 4, field) ? pf_rd_u32(&d->r) : 0; }
+static uint64_t s_u64(s_dec_t *d, const char *field) { return s_need(d, 8, field) ? pf_rd_u64(&d->r) : 0; }
+static int s_i32(s_dec_t *d, const char *field) { return s_int_from_u32(s_u32(d, field)); }
+
+static float s_f32(s_dec_t *d, const char *field)
+{
+    if (!s_need(d, 4, field))
+        return 0.0f;
+    float f = pf_rd_f32(&d->r);
+    if (d->r.err)
+        s_fail(d, "%s is not a finite number", field);
+    return f;
+}
+
+static void s_str(s_dec_t *d, const char *field, char *dst, size_t cap)
+{
+    dst[0] = '\0';
+    if (!s_need(d, 2, field))
+        return;
+    size_t n = (size_t)d->r.p[0] | (size_t)d->r.p[1] << 8;
+    if (n > PF_PROTO_MAX_STRING) {
+        s_fail(d, "%s is %zu bytes, over the limit of %u", field, n, (unsigned)PF_PROTO_MAX_STRING);
+        return;
+    }
+    if (n >= cap) {
+        s_fail(d, "%s is %zu bytes; at most %zu fit", field, n, cap - 1);
+        return;
+    }
+    if (d->r.left - 2 < n) {
+        s_fail(d, "the frame ends inside %s (%zu bytes of text, %zu left)", field, n, d->r.left - 2);
+        return;
+    }
+    pf_rd_str(&d->r, dst, cap);
+    if (d->r.err)
+        s_fail(d, "%s contains a NUL byte", field);
+}
+
+static void s_dec_settings(s_dec_t *d, pf_settings_t *s)
+{
+    s->width = s_i32(d, "settings.width");
+    s->height = s_i32(d, "settings.height");
+    s->spp = s_i32(d, "settings.spp");
+    s->photons = s_u64(d, "settings.photons");
+    s->caustic_photons = s_u64(d, "settings.caustic_photons");
+    s->gather = s_i32(d, "settings.gather");
+    s->light_samples = s_i32(d, "settings.light_samples");
+    s->max_depth = s_i32(d, "settings.max_depth");
+    s->photon_max_depth = s_i32(d, "settings.photon_max_depth");
+    s->global_k = s_i32(d, "settings.global_k");
+    s->caustic_k = s_i32(d, "settings.caustic_k");
+    s->caustic_radius = s_f32(d, "settings.caustic_radius");
+    s->global_radius = s_f32(d, "settings.global_radius");
+    s->irradiance_stride = s_i32(d, "settings.irradiance_stride");
+    s->threads = s_i32(d, "settings.threads");
+    s->seed = s_u64(d, "settings.seed");
+    s->exposure = s_f32(d, "settings.exposure");
+}
+
+void pf_rd_settings(pf_rd_t *r, pf_settings_t *s)
+{
+    s_dec_t d = { *r, "settings", NULL, 0, r->err };
+    s_dec_settings(&d, s);
+    *r = d.r;
+}
+
+/* Range checks write "field value is out of range lo..hi" into why and return
+ * nonzero when the value is outside. */
+static int s_out(char *why, size_t why_len, const char *field, int64_t v, int64_t lo, int64_t hi)
+{
+    if (v >= lo && v <= hi)
+        return 0;
+    s_whyf(why, why_len, "%s %" PRId64 " is out of range %" PRId64 "..%" PRId64, field, v, lo, hi);
+    return 1;
+}
+
+static int s_bad_radius(char *why, size_t why_len, const char *field, float v)
+{
+    if (isfinite(v) && v >= 0.0f)
+        return 0;
+    s_whyf(why, why_len, "%s %g must be finite and >= 0", field, (double)v);
+    return 1;
+}
+
+int pf_settings_check(const pf_settings_t *s, char *why, size_t why_len)
+{
+    if (s_out(why, why_len, "settings.width", s->width, 1, S_MAX_IMAGE_SIDE) ||
+        s_out(why, why_len, "settings.height", s->height, 1, S_MAX_IMAGE_SIDE) ||
+        s_out(why, why_len, "settings.spp", s->spp, 1, INT32_MAX) ||
+        s_out(why, why_len, "settings.gather", s->gather, 0, INT32_MAX) ||
+        s_out(why, why_len, "settings.light_samples", s->light_samples, 1, INT32_MAX) ||
+        s_out(why, why_len, "settings.max_depth", s->max_depth, 0, S_MAX_DEPTH) ||
+        s_out(why, why_len, "settings.photon_max_depth", s->photon_max_depth, 0, S_MAX_DEPTH) ||
+        s_out(why, why_len, "settings.global_k", s->global_k, 1, S_MAX_K) ||
+        s_out(why, why_len, "settings.caustic_k", s->caustic_k, 1, S_MAX_K) ||
+        s_bad_radius(why, why_len, "settings.caustic_radius", s->caustic_radius) ||
+        s_bad_radius(why, why_len, "settings.global_radius", s->global_radius) ||
+        s_out(why, why_len, "settings.irradiance_stride", s->irradiance_stride, 1, INT32_MAX) ||
+        s_out(why, why_len, "settings.threads", s->threads, 0, INT32_MAX))
+        return PF_EINVAL;
+    if (!isfinite(s->exposure)) {
+        s_whyf(why, why_len, "settings.exposure %g is not finite", (double)s->exposure);
+        return PF_EINVAL;
+    }
+    return PF_OK;
+}
+
+/* ---- range rules, shared by encoder and decoder ---- */
+
+/* A tile rectangle: non-empty, at most PF_PROTO_MAX_TILE_PIXELS, and its far
+ * edges representable. */
+static int s_bad_rect(char *why, size_t why_len, uint32_t x0, uint32_t y0, uint32_t w, uint32_t h)
+{
+    if (s_out(why, why_len, "w", w, 1, PF_PROTO_MAX_TILE_PIXELS) ||
+        s_out(why, why_len, "h", h, 1, PF_PROTO_MAX_TILE_PIXELS))
+        return 1;
+    if ((uint64_t)w * h > PF_PROTO_MAX_TILE_PIXELS) {
+        s_whyf(why, why_len, "a %" PRIu32 "x%" PRIu32 " tile is over the limit of %u pixels", w, h,
+               (unsigned)PF_PROTO_MAX_TILE_PIXELS);
+        return 1;
+    }
+    if (x0 > UINT32_MAX - w || y0 > UINT32_MAX - h) {
+        s_whyf(why, why_len, "the tile at (%" PRIu32 ", %" PRIu32 ") of %" PRIu32 "x%" PRIu32
+               " runs past 2^32", x0, y0, w, h);
+        return 1;
+    }
+    return 0;
+}
+
+/* A string field of the struct must end inside its array. */
+static int s_bad_str(char *why, size_t why_len, const char *field, const char *s, size_t cap)
+{
+    if (memchr(s, 0, cap))
+        return 0;
+    s_whyf(why, why_len, "%s is not NUL-terminated within %zu bytes", field, cap);
+    return 1;
+}
+
+/* Every rule of messages.h except the byte-level ones (RESULT's pixel bytes);
+ * 0, or nonzero with why ("field value ...", without the type). */
+static int s_check(const pf_msg_t *m, char *why, size_t why_len)
+{
+    switch (m->type) {
+    case PF_MSG_HELLO:
+        return s_bad_str(why, why_len, "fingerprint.git", m->u.hello.fp.git, sizeof m->u.hello.fp.git) ||
+               s_bad_str(why, why_len, "name", m->u.hello.name, sizeof m->u.hello.name) ||
+               s_out(why, why_len, "threads", m->u.hello.threads, 1, S_MAX_THREADS);
+    case PF_MSG_WELCOME:
+        return s_out(why, why_len, "heartbeat_ms", m->u.welcome.heartbeat_ms, 1, S_MAX_HEARTBEAT_MS);
+    case PF_MSG_REFUSE:
+        return s_bad_str(why, why_len, "reason", m->u.refuse.reason, sizeof m->u.refuse.reason);
+    case PF_MSG_HEARTBEAT:
+        return 0;
+    case PF_MSG_JOB:
+        return pf_settings_check(&m->u.job.settings, why, why_len) != PF_OK ||
+               s_out(why, why_len, "terms", m->u.job.terms, 1, S_MAX_TERMS) ||
+               s_out(why, why_len, "tile_size", m->u.job.tile_size, 1, S_MAX_TILE_SIZE);
+    case PF_MSG_BLOB_REQ:
+        if (s_out(why, why_len, "credit", m->u.blob_req.credit, 1, S_MAX_BLOB_CREDIT))
+            return 1;
+        if (m->u.blob_req.offset % PF_PROTO_CHUNK_SIZE) {
+            s_whyf(why, why_len, "offset %" PRIu64 " is not a multiple of the chunk size %u", m->u.blob_req.offset,
+                   (unsigned)PF_PROTO_CHUNK_SIZE);
+            return 1;
+        }
+        return 0;
+    case PF_MSG_BLOB_CHUNK: {
+        const pf_msg_blob_chunk_t *c = &m->u.chunk;
+        if (s_out(why, why_len, "len", c->len, 0, PF_PROTO_CHUNK_SIZE))
+            return 1;
+        if (c->offset > c->total || c->len > c->total - c->offset) {
+            s_whyf(why, why_len, "offset %" PRIu64 " + len %" PRIu32 " runs past total %" PRIu64, c->offset, c->len,
+                   c->total);
+            return 1;
+        }
+        return 0;
+    }
+    case PF_MSG_READY:
+        return s_out(why, why_len, "credit", m->u.ready.credit, 1, S_MAX_READY_CREDIT);
+    case PF_MSG_TILE:
+        return s_bad_rect(why, why_len, m->u.tile.x0, m->u.tile.y0, m->u.tile.w, m->u.tile.h);
+    case PF_MSG_RESULT:
+        return s_bad_rect(why, why_len, m->u.result.x0, m->u.result.y0, m->u.result.w, m->u.result.h);
+    case PF_MSG_JOB_END:
+        return 0;
+    case PF_MSG_BYE:
+        return s_bad_str(why, why_len, "reason", m->u.bye.reason, sizeof m->u.bye.reason);
+    }
+    s_whyf(why, why_len, "unknown message type %d", (int)m->type);
+    return 1;
+}
+
+/* ---- encoding ---- */
+
+int pf_msg_encode(const pf_msg_t *msg, pf_buf_t *out)
+{
+    out->len = 0;
+    if (s_check(msg, NULL, 0))
+        return PF_EINVAL;
+    const pf_msg_result_t *res = &msg->u.result;
+    size_t npix = 0;
+    if (msg->type == PF_MSG_RESULT) {
+        npix = (size_t)res->w * res->h * 3;
+        if (!res->rgb)
+            return PF_EINVAL;
+        for (size_t i = 0; i < npix; i++)
+            if (!isfinite(res->rgb[i]) || !(res->rgb[i] >= 0.0f))
+                return PF_EINVAL;
+    }
+    if (msg->type == PF_MSG_BLOB_CHUNK && msg->u.chunk.len > 0 && !msg->u.chunk.data)
+        return PF_EINVAL;
+
+    int rc = 0;
+    W(pf_wr_u32(out, PF_PROTO_MAGIC));
+    W(pf_wr_u16(out, PF_PROTO_VERSION));
+    W(pf_wr_u16(out, (uint16_t)msg->type));
+    W(pf_wr_u64(out, msg->job));
+    switch (msg->type) {
+    case PF_MSG_HELLO: {
+        const pf_msg_hello_t *h = &msg->u.hello;
+        W(pf_wr_u16(out, h->fp.protocol));
+        W(pf_wr_u16(out, h->fp.photon_size));
+        W(pf_wr_u16(out, h->fp.float_size));
+        W(pf_wr_u16(out, h->fp.map_version));
+        W(pf_wr_str(out, h->fp.git));
+        W(pf_wr_u32(out, h->threads));
+        W(pf_wr_str(out, h->name));
+        break;
+    }
+    case PF_MSG_WELCOME:
+        W(pf_wr_u32(out, msg->u.welcome.worker_id));
+        W(pf_wr_u32(out, msg->u.welcome.heartbeat_ms));
+        break;
+    case PF_MSG_REFUSE:
+        W(pf_wr_str(out, msg->u.refuse.reason));
+        break;
+    case PF_MSG_HEARTBEAT:
+        W(pf_wr_u64(out, msg->u.heartbeat.progress));
+        W(pf_wr_u32(out, msg->u.heartbeat.tiles_held));
+        break;
+    case PF_MSG_JOB: {
+        const pf_msg_job_t *j = &msg->u.job;
+        W(pf_wr_u64(out, j->scene_hash));
+        W(pf_wr_u64(out, j->scene_size));
+        W(pf_wr_u64(out, j->maps_hash));
+        W(pf_wr_u64(out, j->maps_size));
+        W(pf_wr_settings(out, &j->settings));
+        W(pf_wr_u32(out, j->terms));
+        W(pf_wr_u32(out, j->tile_size));
+        break;
+    }
+    case PF_MSG_BLOB_REQ:
+        W(pf_wr_u64(out, msg->u.blob_req.hash));
+        W(pf_wr_u64(out, msg->u.blob_req.offset));
+        W(pf_wr_u32(out, msg->u.blob_req.credit));
+        break;
+    case PF_MSG_BLOB_CHUNK:
+        W(pf_wr_u64(out, msg->u.chunk.hash));
+        W(pf_wr_u64(out, msg->u.chunk.total));
+        W(pf_wr_u64(out, msg->u.chunk.offset));
+        W(pf_wr_u32(out, msg->u.chunk.len));
+        W(pf_wr_bytes(out, msg->u.chunk.data, msg->u.chunk.len));
+        break;
+    case PF_MSG_READY:
+        W(pf_wr_u32(out, msg->u.ready.credit));
+        break;
+    case PF_MSG_TILE:
+        W(pf_wr_u32(out, msg->u.tile.tile));
+        W(pf_wr_u32(out, msg->u.tile.attempt));
+        W(pf_wr_u32(out, msg->u.tile.x0));
+        W(pf_wr_u32(out, msg->u.tile.y0));
+        W(pf_wr_u32(out, msg->u.tile.w));
+        W(pf_wr_u32(out, msg->u.tile.h));
+        break;
+    case PF_MSG_RESULT:
+        W(pf_wr_u32(out, res->tile));
+        W(pf_wr_u32(out, res->attempt));
+        W(pf_wr_u32(out, res->x0));
+        W(pf_wr_u32(out, res->y0));
+        W(pf_wr_u32(out, res->w));
+        W(pf_wr_u32(out, res->h));
+        W(pf_wr_u32(out, res->render_us));
+        /* The pixels are the rest of the frame, so their count is implied by
+         * w and h and a decoder can check it against the frame's length. */
+        for (size_t i = 0; i < npix && rc == 0; i++)
+            rc = pf_wr_f32(out, res->rgb[i]);
+        break;
+    case PF_MSG_JOB_END:
+        break;
+    case PF_MSG_BYE:
+        W(pf_wr_str(out, msg->u.bye.reason));
+        break;
+    }
+    if (rc != 0)
+        out->len = 0;
+    return rc;
+}
+#undef W
+
+/* ---- decoding ---- */
+
+static void s_dec_body(s_dec_t *d, pf_msg_t *m)
+{
+    switch (m->type) {
+    case PF_MSG_HELLO: {
+        pf_msg_hello_t *h = &m->u.hello;
+        h->fp.protocol = s_u16(d, "fingerprint.protocol");
+        h->fp.photon_size = s_u16(d, "fingerprint.photon_size");
+        h->fp.float_size = s_u16(d, "fingerprint.float_size");
+        h->fp.map_version = s_u16(d, "fingerprint.map_version");
+        s_str(d, "fingerprint.git", h->fp.git, sizeof h->fp.git);
+        h->threads = s_u32(d, "threads");
+        s_str(d, "name", h->name, sizeof h->name);
+        break;
+    }
+    case PF_MSG_WELCOME:
+        m->u.welcome.worker_id = s_u32(d, "worker_id");
+        m->u.welcome.heartbeat_ms = s_u32(d, "heartbeat_ms");
+        break;
+    case PF_MSG_REFUSE:
+        s_str(d, "reason", m->u.refuse.reason, sizeof m->u.refuse.reason);
+        break;
+    case PF_MSG_HEARTBEAT:
+        m->u.heartbeat.progress = s_u64(d, "progress");
+        m->u.heartbeat.tiles_held = s_u32(d, "tiles_held");
+        break;
+    case PF_MSG_JOB: {
+        pf_msg_job_t *j = &m->u.job;
+        j->scene_hash = s_u64(d, "scene_hash");
+        j->scene_size = s_u64(d, "scene_size");
+        j->maps_hash = s_u64(d, "maps_hash");
+        j->maps_size = s_u64(d, "maps_size");
+        s_dec_settings(d, &j->settings);
+        j->terms = s_u32(d, "terms");
+        j->tile_size = s_u32(d, "tile_size");
+        break;
+    }
+    case PF_MSG_BLOB_REQ:
+        m->u.blob_req.hash = s_u64(d, "hash");
+        m->u.blob_req.offset = s_u64(d, "offset");
+        m->u.blob_req.credit = s_u32(d, "credit");
+        break;
+    case PF_MSG_BLOB_CHUNK: {
+        pf_msg_blob_chunk_t *c = &m->u.chunk;
+        c->hash = s_u64(d, "hash");
+        c->total = s_u64(d, "total");
+        c->offset = s_u64(d, "offset");
+        c->len = s_u32(d, "len");
+        if (d->failed)
+            break;
+        if (c->len > PF_PROTO_CHUNK_SIZE) {
+            s_fail(d, "len %" PRIu32 " is over the chunk size %u", c->len, (unsigned)PF_PROTO_CHUNK_SIZE);
+            break;
+        }
+        if (d->r.left < c->len) {
+            s_fail(d, "the frame ends inside data (len %" PRIu32 ", %zu bytes left)", c->len, d->r.left);
+            break;
+        }
+        c->data = pf_rd_bytes(&d->r, c->len);
+        break;
+    }
+    case PF_MSG_READY:
+        m->u.ready.credit = s_u32(d, "credit");
+        break;
+    case PF_MSG_TILE:
+        m->u.tile.tile = s_u32(d, "tile");
+        m->u.tile.attempt = s_u32(d, "attempt");
+        m->u.tile.x0 = s_u32(d, "x0");
+        m->u.tile.y0 = s_u32(d, "y0");
+        m->u.tile.w = s_u32(d, "w");
+        m->u.tile.h = s_u32(d, "h");
+        break;
+    case PF_MSG_RESULT: {
+        pf_msg_result_t *res = &m->u.result;
+        res->tile = s_u32(d, "tile");
+        res->attempt = s_u32(d, "attempt");
+        res->x0 = s_u32(d, "x0");
+        res->y0 = s_u32(d, "y0");
+        res->w = s_u32(d, "w");
+        res->h = s_u32(d, "h");
+        res->render_us = s_u32(d, "render_us");
+        if (d->failed)
+            break;
+        /* The rectangle decides how many pixel bytes must follow, so it is
+         * checked here rather than after the body. */
+        char why[160];
+        if (s_bad_rect(why, sizeof why, res->x0, res->y0, res->w, res->h)) {
+            s_fail(d, "%s", why);
+            break;
+        }
+        size_t want = (size_t)res->w * res->h * 3 * 4;
+        if (d->r.left != want) {
+            s_fail(d, "%zu bytes of pixels for a %" PRIu32 "x%" PRIu32 " tile (%zu expected)", d->r.left, res->w,
+                   res->h, want);
+            break;
+        }
+        const uint8_t *px = pf_rd_bytes(&d->r, want);
+        res->rgb_le = px;
+        for (size_t i = 0; i < want / 4; i++) {
+            const uint8_t *q = px + 4 * i;
+            uint32_t u = (uint32_t)q[0] | (uint32_t)q[1] << 8 | (uint32_t)q[2] << 16 | (uint32_t)q[3] << 24;
+            float f;
+            memcpy(&f, &u, sizeof f);
+            if (!isfinite(f) || !(f >= 0.0f)) {
+                s_fail(d, "pixel %zu channel %zu is %g; pixels must be finite and >= 0", i / 3, i % 3, (double)f);
+                break;
+            }
+        }
+        break;
+    }
+    case PF_MSG_JOB_END:
+        break;
+    case PF_MSG_BYE:
+        s_str(d, "reason", m->u.bye.reason, sizeof m->u.bye.reason);
+        break;
+    }
+}
+
+int pf_msg_decode(const uint8_t *frame, size_t len, pf_msg_t *msg, char *why, size_t why_len)
+{
+    memset(msg, 0, sizeof *msg);
+    s_whyf(why, why_len, "%s", "");
+    if (!frame || len < PF_PROTO_HEADER_SIZE) {
+        s_whyf(why, why_len, "a frame of %zu bytes is shorter than the %d-byte message header", frame ? len : 0,
+               PF_PROTO_HEADER_SIZE);
+        return PF_EPARSE;
+    }
+    pf_rd_t r = pf_rd_make(frame, len);
+    uint32_t magic = pf_rd_u32(&r);
+    uint16_t version = pf_rd_u16(&r);
+    uint16_t type = pf_rd_u16(&r);
+    uint64_t job = pf_rd_u64(&r);
+    if (magic != PF_PROTO_MAGIC) {
+        s_whyf(why, why_len, "bad magic 0x%08" PRIx32 " (expected 0x%08x, \"PFRM\"): not a photonfarm message", magic,
+               PF_PROTO_MAGIC);
+        return PF_EPARSE;
+    }
+    if (version != PF_PROTO_VERSION) {
+        s_whyf(why, why_len, "protocol version %u (peer) vs %u (this build)", (unsigned)version,
+               (unsigned)PF_PROTO_VERSION);
+        return PF_EMISMATCH;
+    }
+    if (type < 1 || type > PF_MSG_MAX_TYPE) {
+        s_whyf(why, why_len, "unknown message type %u", (unsigned)type);
+        return PF_EPARSE;
+    }
+    msg->type = (pf_msg_type)type;
+    msg->job = job;
+
+    s_dec_t d = { r, pf_msg_type_name(type), why, why_len, 0 };
+    s_dec_body(&d, msg);
+    if (!d.failed && d.r.left > 0)
+        s_fail(&d, "%zu trailing bytes after the body", d.r.left);
+    if (!d.failed) {
+        char text[256];
+        if (s_check(msg, text, sizeof text))
+            s_fail(&d, "%s", text);
+    }
+    if (d.failed) {
+        pf_msg_type t = msg->type;
+        memset(msg, 0, sizeof *msg);
+        msg->type = t;
+        return PF_EPARSE;
+    }
+    return PF_OK;
+}
+
+void pf_msg_result_pixels(const pf_msg_result_t *r, float *dst)
+{
+    size_t n = (size_t)r->w * r->h * 3;
+    const uint8_t *p = r->rgb_le;
+    for (size_t i = 0; i < n; i++, p += 4) {
+        uint32_t u = (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
+        memcpy(&dst[i], &u, sizeof u);
+    }
+}

@@ -1,0 +1,182 @@
+/* messages.h: the photonfarm wire protocol, version PF_PROTO_VERSION.
+ *
+ * Transport: the coordinator binds a ZMQ_ROUTER socket, each worker connects
+ * a ZMQ_DEALER; every message is ONE frame (the ROUTER adds and strips the
+ * routing identity). All integers are little-endian and written field by
+ * field through the cursor in wire.h (never a struct memcpy); floats are IEEE
+ * 754 binary32 little-endian and every float is checked finite on decode.
+ *
+ * Every message starts with the same 16-byte header:
+ *   u32 magic  = PF_PROTO_MAGIC ("PFRM")
+ *   u16 version = PF_PROTO_VERSION
+ *   u16 type   (pf_msg_type)
+ *   u64 job    (0 outside a job)
+ * then the body of its type (below). Decoders reject a wrong magic, version or
+ * type, any length that runs past the frame, trailing bytes, out-of-range
+ * values and non-finite floats, returning PF_EPARSE (never asserting). Strings
+ * are u16 length + bytes (no NUL, at most PF_PROTO_MAX_STRING).
+ *
+ * Conversation:
+ *   worker  HELLO ──────────▶ coordinator   fingerprint, threads, name
+ *           ◀────────── WELCOME | REFUSE     (REFUSE carries the reason)
+ *           ◀────────── JOB                  blob names (content hashes) + settings + tiling
+ *   worker  BLOB_REQ(hash, offset, credit)   for each blob it does not hold
+ *           ◀────────── BLOB_CHUNK ×credit   ~1 MiB each, in order
+ *   worker  READY(job, credit)               scene and maps built; may hold `credit` tiles
+ *           ◀────────── TILE(job, tile, attempt, rect) ...
+ *   worker  RESULT(job, tile, attempt, rect, floats) ...   (each RESULT frees one credit)
+ *           ◀────────── JOB_END(job)         job finished or cancelled: drop its tiles
+ *   both    HEARTBEAT about once a second (any message counts as alive)
+ *   either  BYE                              leaving (worker) / shutting down (coordinator)
+ */
+#ifndef PF_MESSAGES_H
+#define PF_MESSAGES_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "common/scene.h"
+
+#define PF_PROTO_MAGIC 0x4d524650u /* "PFRM" read as little-endian bytes 'P','F','R','M' */
+#define PF_PROTO_VERSION 1
+#define PF_PROTO_HEADER_SIZE 16
+#define PF_PROTO_MAX_STRING 1024
+#define PF_PROTO_CHUNK_SIZE (1u << 20)            /* blob chunk payload */
+#define PF_PROTO_MAX_TILE_PIXELS (256u * 256u)    /* a RESULT carries at most this many pixels */
+#define PF_PROTO_MAX_MESSAGE (PF_PROTO_CHUNK_SIZE + 4096u) /* ZMQ_MAXMSGSIZE on both sides */
+
+typedef enum {
+    PF_MSG_HELLO = 1,
+    PF_MSG_WELCOME = 2,
+    PF_MSG_REFUSE = 3,
+    PF_MSG_HEARTBEAT = 4,
+    PF_MSG_JOB = 5,
+    PF_MSG_BLOB_REQ = 6,
+    PF_MSG_BLOB_CHUNK = 7,
+    PF_MSG_READY = 8,
+    PF_MSG_TILE = 9,
+    PF_MSG_RESULT = 10,
+    PF_MSG_JOB_END = 11,
+    PF_MSG_BYE = 12,
+    PF_MSG_MAX_TYPE = 12
+} pf_msg_type;
+
+/* The build fingerprint a worker must share with the coordinator. */
+typedef struct pf_fingerprint {
+    uint16_t protocol;      /* PF_PROTO_VERSION */
+    uint16_t photon_size;   /* sizeof(pf_photon_t) */
+    uint16_t float_size;    /* sizeof(float) */
+    uint16_t map_version;   /* PF_MAPFILE_VERSION */
+    char git[48];           /* git hash of the build, NUL-terminated */
+} pf_fingerprint_t;
+
+/* This build's fingerprint. */
+pf_fingerprint_t pf_fingerprint_self(void);
+/* 0 when a and b may work together; else PF_EMISMATCH with a sentence in
+ * why (e.g. "protocol version 2 (worker) vs 1 (coordinator)"). The git hash is
+ * reported but only a protocol/layout difference refuses. */
+int pf_fingerprint_check(const pf_fingerprint_t *worker, const pf_fingerprint_t *coord, char *why, size_t why_len);
+
+typedef struct pf_msg_hello {
+    pf_fingerprint_t fp;
+    uint32_t threads;
+    char name[256];          /* "host:pid" or a --name */
+} pf_msg_hello_t;
+
+typedef struct pf_msg_welcome {
+    uint32_t worker_id;
+    uint32_t heartbeat_ms;   /* the interval both sides use */
+} pf_msg_welcome_t;
+
+typedef struct pf_msg_refuse {
+    char reason[512];
+} pf_msg_refuse_t;
+
+typedef struct pf_msg_heartbeat {
+    uint64_t progress;       /* worker: pixels rendered since start (the compute watchdog's counter) */
+    uint32_t tiles_held;     /* worker: tiles leased and not yet returned */
+} pf_msg_heartbeat_t;
+
+typedef struct pf_msg_job {
+    uint64_t scene_hash, scene_size;  /* the scene blob: pf_sceneblob */
+    uint64_t maps_hash, maps_size;    /* the photon-map blob: pf_mapfile */
+    pf_settings_t settings;           /* everything a tile render needs */
+    uint32_t terms;                   /* PF_TERM_* mask */
+    uint32_t tile_size;               /* tiles are tile_size squares, clipped at the image edge */
+} pf_msg_job_t;
+
+typedef struct pf_msg_blob_req {
+    uint64_t hash;           /* which blob */
+    uint64_t offset;         /* first byte wanted (a multiple of PF_PROTO_CHUNK_SIZE) */
+    uint32_t credit;         /* how many chunks may be sent from offset on */
+} pf_msg_blob_req_t;
+
+typedef struct pf_msg_blob_chunk {
+    uint64_t hash, total, offset;
+    uint32_t len;            /* <= PF_PROTO_CHUNK_SIZE; offset + len <= total */
+    const uint8_t *data;     /* decode: points into the frame (valid while it lives) */
+} pf_msg_blob_chunk_t;
+
+typedef struct pf_msg_ready {
+    uint32_t credit;         /* tiles the worker wants in flight */
+} pf_msg_ready_t;
+
+typedef struct pf_msg_tile {
+    uint32_t tile, attempt;
+    uint32_t x0, y0, w, h;   /* w * h <= PF_PROTO_MAX_TILE_PIXELS */
+} pf_msg_tile_t;
+
+typedef struct pf_msg_result {
+    uint32_t tile, attempt;
+    uint32_t x0, y0, w, h;
+    const uint8_t *rgb_le;   /* decode: w*h*3 little-endian floats inside the frame, all checked finite and >= 0 */
+    float *rgb;              /* encode: w*h*3 floats to send */
+    uint32_t render_us;      /* time the tile took, microseconds (sent before the pixels) */
+} pf_msg_result_t;
+
+typedef struct pf_msg_bye {
+    char reason[256];
+} pf_msg_bye_t;
+
+/* A decoded message. Pointers inside (chunk data, result pixels) point into
+ * the frame that was decoded. */
+typedef struct pf_msg {
+    pf_msg_type type;
+    uint64_t job;
+    union {
+        pf_msg_hello_t hello;
+        pf_msg_welcome_t welcome;
+        pf_msg_refuse_t refuse;
+        pf_msg_heartbeat_t heartbeat;
+        pf_msg_job_t job;
+        pf_msg_blob_req_t blob_req;
+        pf_msg_blob_chunk_t chunk;
+        pf_msg_ready_t ready;
+        pf_msg_tile_t tile;
+        pf_msg_result_t result;
+        pf_msg_bye_t bye;
+    } u;
+} pf_msg_t;
+
+/* A growable output buffer for encoders. */
+typedef struct pf_buf {
+    uint8_t *data;
+    size_t len, cap;
+} pf_buf_t;
+void pf_buf_free(pf_buf_t *b);
+
+/* Encodes msg (header from msg->type and msg->job) into out (reset first).
+ * 0, PF_ENOMEM, or PF_EINVAL when a field is out of range. */
+int pf_msg_encode(const pf_msg_t *msg, pf_buf_t *out);
+
+/* Decodes one frame. 0, or PF_EPARSE with why filled ("RESULT: 12 bytes of
+ * pixels for a 4x4 tile"), or PF_EMISMATCH for a foreign protocol version
+ * (so the caller can say so rather than call it garbage). */
+int pf_msg_decode(const uint8_t *frame, size_t len, pf_msg_t *msg, char *why, size_t why_len);
+
+/* Copies a decoded RESULT's pixels into dst (w*h*3 floats). */
+void pf_msg_result_pixels(const pf_msg_result_t *r, float *dst);
+
+const char *pf_msg_type_name(int type);
+
+#endif

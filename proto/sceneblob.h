@@ -1,0 +1,23 @@
+/* sceneblob.h: the scene as a self-contained blob a worker can rebuild
+ * without any file: materials, meshes (positions, normals, indices, material
+ * per triangle), spheres, point/spot lights, camera. Little-endian, field by
+ * field; named on the wire by its content hash (pf_hash_bytes of the blob). */
+#ifndef PF_SCENEBLOB_H
+#define PF_SCENEBLOB_H
+
+#include "common/scene.h"
+#include "proto/messages.h"
+
+#define PF_SCENEBLOB_MAGIC 0x4e435346u /* "FSCN" */
+#define PF_SCENEBLOB_VERSION 1
+
+/* Serializes a finalized scene into out (reset first). 0 or PF_ENOMEM. */
+int pf_sceneblob_write(const pf_scene_t *scene, pf_buf_t *out);
+
+/* Rebuilds a scene from a blob, validating every count against the bytes
+ * left, every index against its array, every float finite, names terminated.
+ * The result is finalized. NULL with err filled ("scene blob: ...") on any
+ * problem. */
+pf_scene_t *pf_sceneblob_read(const uint8_t *data, size_t len, pf_error_t *err);
+
+#endif
