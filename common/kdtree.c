@@ -586,6 +586,64 @@ sort:
     return count;
 }
 
+/* The k = 1 search without a heap, with the normal test applied to each
+ * candidate that would beat the current best (the oct-normal decode is paid
+ * only for those). Ties go to the lower tree index, as in pf_kdtree_knn. */
+int pf_kdtree_nearest_normal(const pf_kdtree_t *self, pf_vec3 x, pf_vec3 n, float min_cos, float max_r2,
+                             pf_knn_t *out)
+{
+    if (!self || self->n == 0 || s_hopeless(x, max_r2))
+        return 0;
+    const pf_photon_t *ph = self->photons;
+    const uint8_t *axes = self->axes;
+    const float q[3] = { x.x, x.y, x.z };
+    pf_knn_t best = { UINT32_MAX, max_r2 };
+    int found = 0;
+    s_entry_t stack[S_STACK];
+    int sp = 0;
+    uint32_t lo = 0, hi = (uint32_t)self->n;
+    for (;;) {
+        while (lo < hi) {
+            uint32_t m = lo + (hi - lo) / 2;
+            const float *p = ph[m].pos;
+            float d2 = s_dist2(q, p);
+            if ((d2 < best.d2 || (d2 == best.d2 && m < best.index)) &&
+                pf_dot(pf_oct_decode(ph[m].normal), n) >= min_cos) {
+                best = (pf_knn_t){ m, d2 };
+                found = 1;
+            }
+            int a = axes[m];
+            float diff = q[a] - p[a];
+            float plane_d2 = diff * diff;
+            uint32_t flo, fhi;
+            if (diff < 0.0f) {
+                flo = m + 1;
+                fhi = hi;
+                hi = m;
+            } else {
+                flo = lo;
+                fhi = m;
+                lo = m + 1;
+            }
+            if (flo < fhi && !(plane_d2 > best.d2)) {
+                PF_DCHECK(sp < S_STACK);
+                stack[sp++] = (s_entry_t){ flo, fhi, plane_d2 };
+            }
+        }
+        do {
+            if (sp == 0)
+                goto end;
+            sp--;
+        } while (stack[sp].d2 > best.d2);
+        lo = stack[sp].lo;
+        hi = stack[sp].hi;
+    }
+end:
+    if (found)
+        *out = best;
+    return found;
+}
+
 size_t pf_kdtree_radius(const pf_kdtree_t *self, pf_vec3 x, float r2, pf_knn_t *out, size_t cap)
 {
     if (!self || self->n == 0 || s_hopeless(x, r2))

@@ -53,6 +53,13 @@ void pf_kdtree_bounds(const pf_kdtree_t *self, pf_vec3 *lo, pf_vec3 *hi);
  * result is a pure function of the tree and the query. */
 size_t pf_kdtree_knn(const pf_kdtree_t *self, pf_vec3 x, size_t k, float max_r2, pf_knn_t *out);
 
+/* The nearest photon to x within squared distance max_r2 whose stored normal
+ * (pf_photon_t.normal, octahedral) has a cosine >= min_cos with unit n; ties
+ * go to the lower tree index. Returns 1 and fills *out, or 0 if none. The
+ * irradiance lookup of every final-gather ray uses it. */
+int pf_kdtree_nearest_normal(const pf_kdtree_t *self, pf_vec3 x, pf_vec3 n, float min_cos, float max_r2,
+                             pf_knn_t *out);
+
 /* All photons with squared distance <= r2 from x: writes up to cap of them to
  * out (in no particular order) and returns how many there are in total. */
 size_t pf_kdtree_radius(const pf_kdtree_t *self, pf_vec3 x, float r2, pf_knn_t *out, size_t cap);

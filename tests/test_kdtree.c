@@ -604,6 +604,7 @@ static void s_test_from_layout(void)
 #define pf_kdtree_bounds s_fallback_bounds
 #define pf_kdtree_knn s_fallback_knn
 #define pf_kdtree_radius s_fallback_radius
+#define pf_kdtree_nearest_normal s_fallback_nearest_normal
 #include "common/kdtree.c"
 #undef pf_kdtree_build
 #undef pf_kdtree_from_layout
@@ -704,6 +705,52 @@ static void s_test_threads(void)
     free(input);
 }
 
+/* pf_kdtree_nearest_normal against a scan: photons get normals among the
+ * six axes (and a few random ones); the answer must be the (d2, index)
+ * minimum over photons within max_r2 whose normal agrees. */
+static void s_test_nearest_normal(int kind, size_t n, int nq)
+{
+    static const pf_vec3 axes6[6] = { { 1, 0, 0 }, { -1, 0, 0 }, { 0, 1, 0 }, { 0, -1, 0 }, { 0, 0, 1 }, { 0, 0, -1 } };
+    pf_photon_t *input = s_make_set(kind, n);
+    for (size_t i = 0; i < n; i++)
+        input[i].normal = pf_oct_encode(i % 7 == 6 ? pf_norm(pf_v3(s_uniform() - 0.5f, s_uniform() - 0.5f, 0.3f))
+                                                   : axes6[s_next() % 6]);
+    pf_kdtree_t *t = s_build_copy(input, n);
+    const pf_photon_t *ph = pf_kdtree_photons(t);
+    int ok = 1;
+    for (int q = 0; q < nq; q++) {
+        pf_vec3 x = pf_v3(s_uniform() * 2.4f - 1.2f, s_uniform() * 2.4f - 1.2f, s_uniform() * 2.4f - 1.2f);
+        if (n && q % 3 == 0)
+            x = pf_photon_pos(&ph[s_next() % n]);
+        pf_vec3 nn = axes6[s_next() % 6];
+        float min_cos = q % 2 ? 0.7f : 0.99f;
+        float r2 = q % 5 == 0 ? INFINITY : 0.3f * s_uniform();
+        pf_knn_t best = { UINT32_MAX, INFINITY };
+        int want = 0;
+        for (size_t i = 0; i < n; i++) {
+            double dx = x.x - ph[i].pos[0], dy = x.y - ph[i].pos[1], dz = x.z - ph[i].pos[2];
+            float d2 = (float)(dx * dx + dy * dy + dz * dz);
+            if (d2 > r2 || pf_dot(pf_oct_decode(ph[i].normal), nn) < min_cos)
+                continue;
+            if (!want || d2 < best.d2 || (d2 == best.d2 && i < best.index)) {
+                best = (pf_knn_t){ (uint32_t)i, d2 };
+                want = 1;
+            }
+        }
+        pf_knn_t got = { 0, 0 };
+        int found = pf_kdtree_nearest_normal(t, x, nn, min_cos, r2, &got);
+        if (found != want || (want && (got.index != best.index || got.d2 != best.d2))) {
+            ok = 0;
+            printf("nearest_normal %s n=%zu query %d: got %d (%u, %g), want %d (%u, %g)\n", s_set_names[kind], n, q,
+                   found, got.index, got.d2, want, best.index, best.d2);
+            break;
+        }
+    }
+    CHECK(ok, "%s n=%zu: nearest with normal filter differs from a scan", s_set_names[kind], n);
+    pf_kdtree_destroy(&t);
+    free(input);
+}
+
 int main(void)
 {
     for (size_t n = 0; n <= 64; n++)
@@ -737,6 +784,12 @@ int main(void)
     s_test_fallback(SET_CLUSTERED, 3000);
     s_test_fallback(SET_GRID, 3000);
     s_test_fallback(SET_COINCIDENT, 1000);
+    for (size_t n = 0; n <= 64; n += 7)
+        s_test_nearest_normal(SET_UNIFORM, n, 200);
+    s_test_nearest_normal(SET_UNIFORM, 3000, 400);
+    s_test_nearest_normal(SET_CLUSTERED, 2000, 400);
+    s_test_nearest_normal(SET_COINCIDENT, 500, 100);
+    s_test_nearest_normal(SET_GRID, 2500, 300);
     s_test_edges();
     s_test_from_layout();
     s_test_threads();

@@ -100,21 +100,9 @@ static pf_vec3 s_direct(s_state *st, const pf_hit_t *h, const pf_material_t *m, 
 static pf_vec3 s_irradiance(s_state *st, pf_vec3 p, pf_vec3 nf)
 {
     const pf_photon_maps_t *pm = st->ctx->maps;
-    if (pm->irradiance) {
-        /* The nearest point almost always lies on the same surface; only near
-         * edges and corners does a wider search pay. */
-        pf_knn_t near[8];
-        const pf_photon_t *pts = pf_kdtree_photons(pm->irradiance);
-        size_t cnt = pf_kdtree_knn(pm->irradiance, p, 1, pm->irradiance_r2, near);
-        if (cnt && pf_dot(pf_oct_decode(pts[near[0].index].normal), nf) >= PF_NORMAL_AGREE)
-            return pf_photon_power(&pts[near[0].index]);
-        cnt = cnt ? pf_kdtree_knn(pm->irradiance, p, 8, pm->irradiance_r2, near) : 0;
-        for (size_t i = 1; i < cnt; i++) {
-            const pf_photon_t *q = &pts[near[i].index];
-            if (pf_dot(pf_oct_decode(q->normal), nf) >= PF_NORMAL_AGREE)
-                return pf_photon_power(q);
-        }
-    }
+    pf_knn_t near;
+    if (pm->irradiance && pf_kdtree_nearest_normal(pm->irradiance, p, nf, PF_NORMAL_AGREE, pm->irradiance_r2, &near))
+        return pf_photon_power(&pf_kdtree_photons(pm->irradiance)[near.index]);
     return pf_pm_irradiance(pm->global, p, nf, st->ctx->settings.global_k, pm->global_r2, st->scratch);
 }
 
