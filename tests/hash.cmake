@@ -1,0 +1,1 @@
+pf_add_test(hash test_hash.c LIBS pf_common LABELS unit)
