@@ -12,8 +12,13 @@
 #include "common/image.h"
 #include "common/log.h"
 #include "common/scene.h"
+#include "common/keyfile.h"
 #include "coordinator/compare.h"
+#include "coordinator/farm.h"
 #include "coordinator/job.h"
+
+#include <signal.h>
+#include <zmq.h>
 
 enum { EXIT_RENDER = 1, EXIT_USAGE = 2, EXIT_INPUT = 3 };
 
@@ -25,6 +30,7 @@ static void s_usage(FILE *f)
             "usage:\n"
             "  photonfarm render SCENE [-o out.png] [--hdr out.pfm] [options]\n"
             "  photonfarm compare IMAGE.pfm REFERENCE.pfm [--json]\n"
+            "  photonfarm keygen NAME        (writes NAME.key, secret, and NAME.pub for CURVE)\n"
             "  photonfarm --help | --version\n"
             "\n"
             "SCENE is a JSON scene (docs/scene-format.md), an .obj model (materials from its\n"
@@ -48,6 +54,20 @@ static void s_usage(FILE *f)
             "      --exposure STOPS     PNG exposure in stops (0)\n"
             "      --terms LIST         render only these terms: emitted,direct,caustic,indirect (all);\n"
             "                           photonmap shows the global map's radiance (debugging)\n"
+            "\n"
+            "render farm (docs/cluster.md):\n"
+            "      --workers N          start N local worker processes (0: render in this process)\n"
+            "      --threads T          with --workers: threads per worker (default: cores / N)\n"
+            "      --bind ENDPOINT      listen for workers there, e.g. tcp://*:7878 (default: loopback only)\n"
+            "      --min-workers K      lease no tile before K workers are ready (1)\n"
+            "      --curve-secret FILE  encrypt with CURVE: this coordinator's key file (photonfarm keygen)\n"
+            "      --curve-allow FILE   the public keys of the workers admitted, one per line\n"
+            "      --tile N             tile size in pixels (32)\n"
+            "      --heartbeat-ms MS    heartbeat interval (1000); a worker silent for 4 is dead\n"
+            "      --watchdog S         a worker whose progress stalls S seconds is stuck (30)\n"
+            "      --max-wait S         give up when no worker is connected for S seconds (0: never)\n"
+            "      --worker-exe PATH    the worker program for --workers (default: beside photonfarm)\n"
+            "\n"
             "  -q, --quiet              only errors\n"
             "  -v, --verbose            debug logging\n",
             PF_VERSION, PF_GIT_HASH);
@@ -133,8 +153,16 @@ static void s_default_output(const char *scene, char *out, size_t n)
 
 enum {
     OPT_HDR = 256, OPT_SIZE, OPT_SPP, OPT_PHOTONS, OPT_CPHOTONS, OPT_GATHER, OPT_LSAMPLES, OPT_GK, OPT_CK, OPT_CR,
-    OPT_DEPTH, OPT_THREADS, OPT_SEED, OPT_EXPOSURE, OPT_TERMS,
+    OPT_DEPTH, OPT_THREADS, OPT_SEED, OPT_EXPOSURE, OPT_TERMS, OPT_WORKERS, OPT_BIND, OPT_MINW, OPT_CSECRET,
+    OPT_CALLOW, OPT_TILE, OPT_HB, OPT_WATCHDOG, OPT_MAXWAIT, OPT_WEXE,
 };
+
+static volatile int s_interrupted;
+static void s_on_signal(int sig)
+{
+    (void)sig;
+    s_interrupted = 1;
+}
 
 static int s_cmd_render(int argc, char **argv)
 {
@@ -148,7 +176,12 @@ static int s_cmd_render(int argc, char **argv)
         { "threads", required_argument, 0, OPT_THREADS }, { "seed", required_argument, 0, OPT_SEED },
         { "exposure", required_argument, 0, OPT_EXPOSURE }, { "terms", required_argument, 0, OPT_TERMS },
         { "quiet", no_argument, 0, 'q' },                { "verbose", no_argument, 0, 'v' },
-        { "help", no_argument, 0, 'h' },                 { 0, 0, 0, 0 },
+        { "help", no_argument, 0, 'h' },                 { "workers", required_argument, 0, OPT_WORKERS },
+        { "bind", required_argument, 0, OPT_BIND },      { "min-workers", required_argument, 0, OPT_MINW },
+        { "curve-secret", required_argument, 0, OPT_CSECRET }, { "curve-allow", required_argument, 0, OPT_CALLOW },
+        { "tile", required_argument, 0, OPT_TILE },      { "heartbeat-ms", required_argument, 0, OPT_HB },
+        { "watchdog", required_argument, 0, OPT_WATCHDOG }, { "max-wait", required_argument, 0, OPT_MAXWAIT },
+        { "worker-exe", required_argument, 0, OPT_WEXE }, { 0, 0, 0, 0 },
     };
     /* Command-line settings are applied over the scene's after it loads. */
     struct {
@@ -161,6 +194,10 @@ static int s_cmd_render(int argc, char **argv)
     memset(&o, 0, sizeof o);
     const char *out = NULL, *hdr = NULL;
     unsigned terms = PF_TERM_ALL;
+    pf_farm_opts_t farm;
+    pf_farm_opts_default(&farm);
+    int workers = 0;
+    float fval = 0;
     int c;
     optind = 1;
     opterr = 0;
@@ -190,6 +227,16 @@ static int s_cmd_render(int argc, char **argv)
         case OPT_SEED: bad = s_parse_u64(optarg, &o.seed); o.has_seed = 1; break;
         case OPT_EXPOSURE: bad = s_parse_float(optarg, &o.exposure); o.has_exposure = 1; break;
         case OPT_TERMS: bad = s_parse_terms(optarg, &terms); break;
+        case OPT_WORKERS: bad = s_parse_int(optarg, 0, 256, &workers); break;
+        case OPT_BIND: farm.bind = optarg; break;
+        case OPT_MINW: bad = s_parse_int(optarg, 1, 1024, &farm.min_workers); break;
+        case OPT_CSECRET: farm.curve_secret = optarg; break;
+        case OPT_CALLOW: farm.curve_allow = optarg; break;
+        case OPT_TILE: bad = s_parse_int(optarg, 1, 256, &farm.tile_size); break;
+        case OPT_HB: bad = s_parse_int(optarg, 10, 60000, &farm.heartbeat_ms); break;
+        case OPT_WATCHDOG: bad = s_parse_float(optarg, &fval) || fval <= 0; farm.watchdog_s = fval; break;
+        case OPT_MAXWAIT: bad = s_parse_float(optarg, &fval) || fval < 0; farm.max_wait_s = fval; break;
+        case OPT_WEXE: farm.worker_exe = optarg; break;
         case 'q': pf_log_set_level(PF_LOG_ERROR); break;
         case 'v': pf_log_set_level(PF_LOG_DEBUG); break;
         case 'h': s_usage(stdout); return 0;
@@ -251,11 +298,40 @@ static int s_cmd_render(int argc, char **argv)
 
     pf_image_t img = { 0 };
     pf_job_summary_t sum;
-    int rc = pf_job_render_local(scene, &s, terms, 1, &img, &sum, &err);
-    pf_scene_destroy(&scene);
-    if (rc != PF_OK) {
-        pf_error("render failed: %s", err.msg);
-        return EXIT_RENDER;
+    memset(&sum, 0, sizeof sum);
+    int rc;
+    if (workers > 0 || farm.bind) {
+        /* The farm: --threads is per local worker; the photon pass uses every core here. */
+        farm.local_workers = workers;
+        farm.worker_threads = o.has_threads ? o.threads : 0;
+        farm.show_progress = 1;
+        s.threads = 0;
+        struct sigaction sa;
+        memset(&sa, 0, sizeof sa);
+        sa.sa_handler = s_on_signal;
+        sigaction(SIGINT, &sa, NULL);
+        sigaction(SIGTERM, &sa, NULL);
+        signal(SIGPIPE, SIG_IGN);
+        pf_farm_summary_t fs;
+        rc = pf_farm_render(scene, &s, terms, &farm, &s_interrupted, &img, &fs, &err);
+        pf_scene_destroy(&scene);
+        if (rc != PF_OK) {
+            pf_error("render failed: %s", err.msg);
+            return rc == PF_EINTERRUPTED ? 130 : EXIT_RENDER;
+        }
+        pf_farm_summary_log(&fs);
+        sum.bad_pixels = fs.bad_pixels;
+        sum.threads = s.threads;
+        sum.accel_s = 0;
+        sum.photons = fs.photons;
+        sum.render_s = fs.render_s;
+    } else {
+        rc = pf_job_render_local(scene, &s, terms, 1, &img, &sum, &err);
+        pf_scene_destroy(&scene);
+        if (rc != PF_OK) {
+            pf_error("render failed: %s", err.msg);
+            return EXIT_RENDER;
+        }
     }
     if (sum.bad_pixels)
         pf_warn("%zu image channels were non-finite or negative", sum.bad_pixels);
@@ -267,9 +343,38 @@ static int s_cmd_render(int argc, char **argv)
         pf_error("%s", err.msg);
         return EXIT_RENDER;
     }
-    pf_info("done in %.2f s (%d threads): Embree %.2f s, photons %.2f s, render %.2f s -> %s%s%s", pf_now() - t0,
-            sum.threads, sum.accel_s, sum.photons.trace_s + sum.photons.build_s + sum.photons.irradiance_s,
-            sum.render_s, out, hdr ? ", " : "", hdr ? hdr : "");
+    pf_info("done in %.2f s: photons %.2f s, render %.2f s -> %s%s%s", pf_now() - t0,
+            sum.photons.trace_s + sum.photons.build_s + sum.photons.irradiance_s, sum.render_s, out, hdr ? ", " : "",
+            hdr ? hdr : "");
+    return 0;
+}
+
+/* photonfarm keygen NAME: a CURVE key pair in NAME.key (secret, mode 0600)
+ * and the public half in NAME.pub. */
+static int s_cmd_keygen(int argc, char **argv)
+{
+    if (argc != 2 || argv[1][0] == '-') {
+        fprintf(argc == 2 ? stdout : stderr, "usage: photonfarm keygen NAME   (writes NAME.key and NAME.pub)\n");
+        return argc == 2 && (!strcmp(argv[1], "--help") || !strcmp(argv[1], "-h")) ? 0 : EXIT_USAGE;
+    }
+    char pub[41], sec[41], path[4096];
+    if (zmq_curve_keypair(pub, sec) != 0) {
+        fprintf(stderr, "photonfarm keygen: this libzmq has no CURVE support: %s\n", zmq_strerror(zmq_errno()));
+        return EXIT_RENDER;
+    }
+    pf_error_t err = { { 0 } };
+    snprintf(path, sizeof path, "%s.key", argv[1]);
+    if (pf_keyfile_write(path, pub, sec, &err) != PF_OK) {
+        fprintf(stderr, "photonfarm keygen: %s\n", err.msg);
+        return EXIT_RENDER;
+    }
+    printf("wrote %s (keep it secret)\n", path);
+    snprintf(path, sizeof path, "%s.pub", argv[1]);
+    if (pf_keyfile_write(path, pub, NULL, &err) != PF_OK) {
+        fprintf(stderr, "photonfarm keygen: %s\n", err.msg);
+        return EXIT_RENDER;
+    }
+    printf("wrote %s\npublic key: %s\n", path, pub);
     return 0;
 }
 
@@ -292,6 +397,8 @@ int main(int argc, char **argv)
         return s_cmd_render(argc - 1, argv + 1);
     if (!strcmp(cmd, "compare"))
         return pf_cli_compare(argc - 1, argv + 1);
+    if (!strcmp(cmd, "keygen"))
+        return s_cmd_keygen(argc - 1, argv + 1);
     fprintf(stderr, "photonfarm: unknown command '%s' (see 'photonfarm --help')\n", cmd);
     return EXIT_USAGE;
 }

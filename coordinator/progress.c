@@ -19,7 +19,9 @@ void pf_progress_begin(pf_progress_t *p, const char *label, int enabled)
     }
 }
 
-void pf_progress_update(pf_progress_t *p, int done, int total)
+void pf_progress_update(pf_progress_t *p, int done, int total) { pf_progress_update_note(p, done, total, NULL); }
+
+void pf_progress_update_note(pf_progress_t *p, int done, int total, const char *note)
 {
     if (!p->enabled || total <= 0)
         return;
@@ -36,7 +38,8 @@ void pf_progress_update(pf_progress_t *p, int done, int total)
     double el = now - p->start;
     double rate = el > 0 ? done / el : 0;
     double eta = rate > 0 ? (total - done) / rate : 0;
-    fprintf(stderr, "\r%-8s [%s] %d/%d tiles  %.1f tiles/s  ETA %.0f s   ", p->label, bar, done, total, rate, eta);
+    fprintf(stderr, "\r\033[K%-8s [%s] %d/%d tiles  %.1f tiles/s  ETA %.0f s%s%s", p->label, bar, done, total, rate,
+            eta, note ? "  " : "", note ? note : "");
     fflush(stderr);
     p->drawn = 1;
 }

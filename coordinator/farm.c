@@ -1,0 +1,817 @@
+/* farm.c: the coordinator's side of the render farm; see farm.h.
+ *
+ * Threads: the caller's thread runs the event loop and owns the ROUTER
+ * socket; a helper thread runs the photon pass (so workers that connect in
+ * the meantime are welcomed and heartbeated); the ZAP thread (zap.c)
+ * authenticates CURVE clients.
+ *
+ * Tiles are leased as (job, tile, attempt). The first valid RESULT for a
+ * tile wins; later ones are counted as duplicates and dropped. A lease
+ * returns its tile to the front of the queue (attempt + 1) when its worker
+ * falls silent for dead_after heartbeats, when its progress counter stalls
+ * for watchdog_s while it holds tiles (stuck in compute: libzmq's own
+ * heartbeat would still be answered by its I/O thread), or after
+ * lease_timeout_s. Each worker holds up to the credit it announced, so it
+ * never idles waiting for the next tile. Every frame from the network goes
+ * through pf_msg_decode; a bad one is logged (rate-limited) and dropped. */
+#include "coordinator/farm.h"
+
+#include <errno.h>
+#include <omp.h>
+#include <pthread.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/wait.h>
+#include <unistd.h>
+#include <zmq.h>
+
+#include "common/accel.h"
+#include "common/hash.h"
+#include "common/keyfile.h"
+#include "common/light.h"
+#include "common/log.h"
+#include "coordinator/progress.h"
+#include "coordinator/spawn.h"
+#include "coordinator/zap.h"
+#include "proto/mapfile.h"
+#include "proto/messages.h"
+#include "proto/sceneblob.h"
+#include "worker/render.h"
+
+#define S_MAX_WORKERS 1024
+#define S_MAX_LOCAL 256
+
+enum { W_FREE = 0, W_HELLO, W_JOB_SENT, W_READY, W_DEAD };
+enum { T_QUEUED = 0, T_LEASED, T_DONE };
+
+typedef struct s_worker {
+    int state;
+    uint8_t id[256];
+    size_t idlen;
+    uint32_t wid;
+    char name[64];
+    uint32_t threads;
+    double last_seen, last_sent;
+    uint64_t progress;
+    double progress_at; /* when progress last changed */
+    int stuck;
+    uint32_t credit, held;
+    uint64_t tiles;
+    uint64_t blob_sent; /* bytes of scene and maps sent in this job (for the transfer display) */
+} s_worker;
+
+#define S_LESSEES 4
+
+typedef struct s_tile {
+    int state;
+    uint32_t attempt;
+    int owner; /* worker slot of the current lease, or -1 */
+    int lessees[S_LESSEES]; /* the last workers this tile was leased to: only they may return it */
+    int nlessees;
+    double leased_at;
+    uint32_t x0, y0, w, h;
+} s_tile;
+
+/* The photon pass, run in its own thread. */
+typedef struct s_photons {
+    const pf_scene_t *scene;
+    pf_settings_t settings;
+    pf_accel_t *accel;
+    pf_lights_t *lights;
+    pf_photon_maps_t maps;
+    pf_photon_stats_t stats;
+    pf_buf_t scene_blob, maps_blob;
+    uint64_t scene_hash, maps_hash;
+    int rc;
+    volatile int done;
+    pf_error_t err;
+} s_photons;
+
+static void *s_photon_thread(void *arg)
+{
+    s_photons *p = arg;
+    p->rc = PF_OK;
+    p->accel = pf_accel_create(p->scene, &p->err);
+    p->lights = pf_lights_build(p->scene);
+    if (!p->accel || !p->lights) {
+        p->rc = p->accel ? PF_ENOMEM : PF_EEMBREE;
+    } else {
+        p->rc = pf_photon_pass(p->scene, p->accel, p->lights, &p->settings, &p->maps, &p->stats);
+        if (p->rc)
+            pf_error_set(&p->err, p->rc, NULL, 0, "photon pass failed: %s", pf_strerror(p->rc));
+    }
+    if (p->rc == PF_OK)
+        p->rc = pf_sceneblob_write(p->scene, &p->scene_blob);
+    if (p->rc == PF_OK) {
+        p->scene_hash = pf_hash_bytes(PF_HASH_INIT, p->scene_blob.data, p->scene_blob.len);
+        p->rc = pf_mapfile_write(&p->maps, p->scene_hash, pf_settings_hash(&p->settings), &p->maps_blob);
+        p->maps_hash = pf_hash_bytes(PF_HASH_INIT, p->maps_blob.data, p->maps_blob.len);
+        if (p->rc)
+            pf_error_set(&p->err, p->rc, NULL, 0, "cannot serialize the photon maps: %s", pf_strerror(p->rc));
+    }
+    __atomic_store_n(&p->done, 1, __ATOMIC_RELEASE);
+    return NULL;
+}
+
+typedef struct s_farm {
+    const pf_farm_opts_t *o;
+    void *ctx, *sock;
+    uint64_t job;
+    s_worker *w;
+    int nw;
+    s_tile *t;
+    int nt, ndone;
+    int *queue; /* tile indices, a ring */
+    int qhead, qlen;
+    s_photons ph;
+    pf_msg_job_t jobmsg;
+    int job_ready;
+    pf_image_t *img;
+    pf_buf_t out;
+    pf_farm_summary_t *sum;
+    uint32_t next_wid;
+    double last_bad_log;
+    int bad_since_log;
+    int leasing; /* tiles have been leased: --min-workers was met once */
+} s_farm;
+
+/* --- sending ------------------------------------------------------------ */
+
+static int s_send(s_farm *f, int wi, pf_msg_t *m)
+{
+    s_worker *w = &f->w[wi];
+    m->job = m->job ? m->job : f->job;
+    if (pf_msg_encode(m, &f->out) != PF_OK)
+        return -1;
+    if (zmq_send(f->sock, w->id, w->idlen, ZMQ_SNDMORE | ZMQ_DONTWAIT) < 0 ||
+        zmq_send(f->sock, f->out.data, f->out.len, ZMQ_DONTWAIT) < 0) {
+        /* ROUTER_MANDATORY: an unroutable peer is gone; a full queue waits. */
+        if (zmq_errno() == EHOSTUNREACH && w->state != W_DEAD)
+            pf_debug("worker %s is unreachable", w->name);
+        return -1;
+    }
+    w->last_sent = pf_now();
+    f->sum->bytes_sent += f->out.len;
+    return 0;
+}
+
+static void s_requeue(s_farm *f, int ti, int front)
+{
+    s_tile *t = &f->t[ti];
+    if (t->state == T_DONE)
+        return;
+    if (t->state == T_LEASED && t->owner >= 0 && f->w[t->owner].held > 0)
+        f->w[t->owner].held--;
+    t->state = T_QUEUED;
+    t->owner = -1;
+    t->attempt++;
+    if (front) {
+        f->qhead = (f->qhead + f->nt - 1) % f->nt;
+        f->queue[f->qhead] = ti;
+    } else {
+        f->queue[(f->qhead + f->qlen) % f->nt] = ti;
+    }
+    f->qlen++;
+    f->sum->reissued++;
+}
+
+/* Returns a worker's leased tiles to the front of the queue. */
+static void s_release_worker(s_farm *f, int wi, const char *why)
+{
+    int n = 0;
+    for (int i = 0; i < f->nt; i++)
+        if (f->t[i].state == T_LEASED && f->t[i].owner == wi) {
+            s_requeue(f, i, 1);
+            n++;
+        }
+    f->w[wi].held = 0;
+    if (n || why)
+        pf_warn("worker %s %s: %d tile%s re-issued", f->w[wi].name, why ? why : "released", n, n == 1 ? "" : "s");
+}
+
+static void s_lease(s_farm *f, int wi)
+{
+    s_worker *w = &f->w[wi];
+    if (w->state != W_READY || w->stuck)
+        return;
+    if (!f->leasing) { /* --min-workers holds back the start only, never a running job */
+        int ready = 0;
+        for (int i = 0; i < f->nw; i++)
+            ready += f->w[i].state == W_READY;
+        if (ready < f->o->min_workers)
+            return;
+        f->leasing = 1;
+    }
+    while (w->held < w->credit && f->qlen > 0) {
+        int ti = f->queue[f->qhead];
+        f->qhead = (f->qhead + 1) % f->nt;
+        f->qlen--;
+        s_tile *t = &f->t[ti];
+        pf_msg_t m = { .type = PF_MSG_TILE };
+        m.u.tile = (pf_msg_tile_t){ (uint32_t)ti, t->attempt, t->x0, t->y0, t->w, t->h };
+        t->state = T_LEASED;
+        t->owner = wi;
+        t->leased_at = pf_now();
+        if (t->nlessees == S_LESSEES) {
+            memmove(t->lessees, t->lessees + 1, (S_LESSEES - 1) * sizeof *t->lessees);
+            t->nlessees--;
+        }
+        t->lessees[t->nlessees++] = wi;
+        w->held++;
+        if (s_send(f, wi, &m) != 0) {
+            s_requeue(f, ti, 1);
+            f->sum->reissued--; /* never left: not a re-issue */
+            f->t[ti].attempt--;
+            break;
+        }
+    }
+}
+
+static void s_lease_all(s_farm *f)
+{
+    for (int i = 0; i < f->nw; i++)
+        s_lease(f, i);
+}
+
+static void s_send_job(s_farm *f, int wi)
+{
+    pf_msg_t m = { .type = PF_MSG_JOB };
+    m.u.job = f->jobmsg;
+    if (s_send(f, wi, &m) == 0)
+        f->w[wi].state = W_JOB_SENT;
+}
+
+/* --- receiving ---------------------------------------------------------- */
+
+static int s_find(s_farm *f, const uint8_t *id, size_t len)
+{
+    for (int i = 0; i < f->nw; i++)
+        if (f->w[i].state != W_FREE && f->w[i].idlen == len && memcmp(f->w[i].id, id, len) == 0)
+            return i;
+    return -1;
+}
+
+static void s_bad(s_farm *f, const char *peer, const char *why)
+{
+    f->sum->malformed++;
+    double now = pf_now();
+    if (now - f->last_bad_log > 2.0) {
+        if (f->bad_since_log)
+            pf_warn("dropped %d more malformed messages", f->bad_since_log);
+        pf_warn("dropped a malformed message from %s: %s", peer, why);
+        f->last_bad_log = now;
+        f->bad_since_log = 0;
+    } else {
+        f->bad_since_log++;
+    }
+}
+
+static void s_on_hello(s_farm *f, const uint8_t *id, size_t idlen, const pf_msg_hello_t *h)
+{
+    char why[256] = "";
+    pf_fingerprint_t self = pf_fingerprint_self();
+    int wi = s_find(f, id, idlen);
+    if (wi < 0) {
+        for (wi = 0; wi < f->nw && f->w[wi].state != W_FREE; wi++)
+            ;
+        if (wi == f->nw) {
+            if (f->nw == S_MAX_WORKERS) {
+                pf_warn("too many workers; ignoring %s", h->name);
+                return;
+            }
+            f->nw++;
+        }
+        memset(&f->w[wi], 0, sizeof f->w[wi]);
+        memcpy(f->w[wi].id, id, idlen);
+        f->w[wi].idlen = idlen;
+    } else if (f->w[wi].held) {
+        s_release_worker(f, wi, "registered again");
+    }
+    s_worker *w = &f->w[wi];
+    snprintf(w->name, sizeof w->name, "%.63s", h->name);
+    w->threads = h->threads;
+    w->last_seen = w->progress_at = pf_now();
+    if (pf_fingerprint_check(&h->fp, &self, why, sizeof why) != PF_OK) {
+        pf_msg_t m = { .type = PF_MSG_REFUSE };
+        snprintf(m.u.refuse.reason, sizeof m.u.refuse.reason, "%s", why);
+        w->state = W_HELLO;
+        s_send(f, wi, &m);
+        pf_warn("refused worker %s: %s", w->name, why);
+        f->sum->refused++;
+        w->state = W_FREE;
+        return;
+    }
+    if (strcmp(h->fp.git, self.git) != 0)
+        pf_info("worker %s was built from %s (this coordinator: %s)", w->name, h->fp.git, self.git);
+    w->state = W_HELLO;
+    w->wid = ++f->next_wid;
+    f->sum->workers_seen++;
+    pf_msg_t m = { .type = PF_MSG_WELCOME };
+    m.u.welcome = (pf_msg_welcome_t){ w->wid, (uint32_t)f->o->heartbeat_ms };
+    s_send(f, wi, &m);
+    pf_info("worker %s joined (%u threads)", w->name, w->threads);
+    if (f->job_ready)
+        s_send_job(f, wi);
+}
+
+static void s_on_blob_req(s_farm *f, int wi, const pf_msg_blob_req_t *r)
+{
+    const pf_buf_t *blob = r->hash == f->ph.scene_hash ? &f->ph.scene_blob
+                         : r->hash == f->ph.maps_hash  ? &f->ph.maps_blob
+                                                       : NULL;
+    if (!f->job_ready || !blob) {
+        pf_warn("worker %s asked for an unknown blob %016llx", f->w[wi].name, (unsigned long long)r->hash);
+        return;
+    }
+    uint64_t off = r->offset;
+    for (uint32_t c = 0; c < r->credit && off < blob->len; c++) {
+        uint64_t len = blob->len - off < PF_PROTO_CHUNK_SIZE ? blob->len - off : PF_PROTO_CHUNK_SIZE;
+        pf_msg_t m = { .type = PF_MSG_BLOB_CHUNK };
+        m.u.chunk = (pf_msg_blob_chunk_t){ r->hash, blob->len, off, (uint32_t)len, blob->data + off };
+        if (s_send(f, wi, &m) != 0)
+            break;
+        f->sum->blob_bytes += len;
+        f->w[wi].blob_sent += len;
+        off += len;
+    }
+}
+
+static void s_on_result(s_farm *f, int wi, const pf_msg_result_t *r)
+{
+    if (r->tile >= (uint32_t)f->nt) {
+        s_bad(f, f->w[wi].name, "RESULT for a tile that does not exist");
+        return;
+    }
+    s_tile *t = &f->t[r->tile];
+    if (r->x0 != t->x0 || r->y0 != t->y0 || r->w != t->w || r->h != t->h || r->attempt > t->attempt) {
+        s_bad(f, f->w[wi].name, "RESULT does not match its tile's lease");
+        return;
+    }
+    int leased = 0;
+    for (int k = 0; k < t->nlessees; k++)
+        leased |= t->lessees[k] == wi;
+    if (!leased) {
+        s_bad(f, f->w[wi].name, "RESULT for a tile that was not leased to it");
+        return;
+    }
+    /* Invariant: a worker's held = tiles in state LEASED whose owner it is. */
+    if (t->state == T_DONE) {
+        f->sum->duplicates++;
+        return;
+    }
+    if (t->state == T_LEASED) {
+        if (t->owner >= 0 && f->w[t->owner].held > 0)
+            f->w[t->owner].held--;
+    } else { /* re-issued and waiting in the queue: this result makes it done, take it out */
+        for (int k = 0; k < f->qlen; k++) {
+            if (f->queue[(f->qhead + k) % f->nt] != (int)r->tile)
+                continue;
+            for (int j = k; j > 0; j--)
+                f->queue[(f->qhead + j) % f->nt] = f->queue[(f->qhead + j - 1) % f->nt];
+            f->qhead = (f->qhead + 1) % f->nt;
+            f->qlen--;
+            break;
+        }
+    }
+    float *row = malloc((size_t)r->w * 3 * sizeof *row * r->h);
+    if (!row)
+        return;
+    pf_msg_result_pixels(r, row);
+    for (uint32_t y = 0; y < r->h; y++)
+        memcpy(&f->img->rgb[3 * ((size_t)(r->y0 + y) * (size_t)f->img->width + r->x0)], &row[3 * (size_t)y * r->w],
+               (size_t)r->w * 3 * sizeof(float));
+    free(row);
+    t->state = T_DONE;
+    t->owner = -1;
+    f->ndone++;
+    f->sum->results++;
+    f->w[wi].tiles++;
+}
+
+static void s_on_frame(s_farm *f, const uint8_t *id, size_t idlen, const uint8_t *data, size_t len)
+{
+    pf_msg_t m;
+    char why[256] = "";
+    int wi = s_find(f, id, idlen);
+    char peer[80];
+    if (wi >= 0)
+        snprintf(peer, sizeof peer, "worker %s", f->w[wi].name);
+    else
+        snprintf(peer, sizeof peer, "an unregistered peer");
+    int rc = pf_msg_decode(data, len, &m, why, sizeof why);
+    if (rc != PF_OK) {
+        s_bad(f, peer, why);
+        return;
+    }
+    if (m.type == PF_MSG_HELLO) {
+        s_on_hello(f, id, idlen, &m.u.hello);
+        return;
+    }
+    if (wi < 0) {
+        s_bad(f, peer, "message before HELLO");
+        return;
+    }
+    s_worker *w = &f->w[wi];
+    w->last_seen = pf_now();
+    if (w->state == W_DEAD) {
+        pf_info("worker %s is back", w->name);
+        w->state = W_HELLO;
+        if (f->job_ready)
+            s_send_job(f, wi);
+    }
+    if (m.type != PF_MSG_BYE && m.job != f->job && m.type != PF_MSG_HEARTBEAT) {
+        pf_debug("dropped %s for job %llu from %s", pf_msg_type_name(m.type), (unsigned long long)m.job, peer);
+        return;
+    }
+    switch (m.type) {
+    case PF_MSG_HEARTBEAT:
+        if (m.u.heartbeat.progress != w->progress) {
+            w->progress = m.u.heartbeat.progress;
+            w->progress_at = w->last_seen;
+            if (w->stuck) {
+                pf_info("worker %s makes progress again", w->name);
+                w->stuck = 0;
+            }
+        }
+        break;
+    case PF_MSG_BLOB_REQ: s_on_blob_req(f, wi, &m.u.blob_req); break;
+    case PF_MSG_READY:
+        w->state = W_READY;
+        w->credit = m.u.ready.credit;
+        w->progress_at = w->last_seen;
+        break;
+    case PF_MSG_RESULT: s_on_result(f, wi, &m.u.result); break;
+    case PF_MSG_BYE:
+        pf_info("worker %s left: %s", w->name, m.u.bye.reason);
+        s_release_worker(f, wi, NULL);
+        w->state = W_FREE;
+        break;
+    default: s_bad(f, peer, "unexpected message type for a coordinator"); break;
+    }
+}
+
+/* --- housekeeping -------------------------------------------------------- */
+
+static void s_tick(s_farm *f)
+{
+    double now = pf_now();
+    double hb = f->o->heartbeat_ms / 1000.0;
+    for (int i = 0; i < f->nw; i++) {
+        s_worker *w = &f->w[i];
+        if (w->state == W_FREE || w->state == W_DEAD)
+            continue;
+        if (now - w->last_seen > f->o->dead_after * hb) {
+            w->state = W_DEAD;
+            f->sum->workers_lost++;
+            s_release_worker(f, i, "is silent: declared dead");
+            continue;
+        }
+        if (w->held && !w->stuck && now - w->progress_at > f->o->watchdog_s) {
+            w->stuck = 1;
+            s_release_worker(f, i, "makes no progress (stuck in compute?)");
+        }
+        if (now - w->last_sent >= hb) {
+            pf_msg_t m = { .type = PF_MSG_HEARTBEAT };
+            s_send(f, i, &m);
+        }
+    }
+    for (int i = 0; i < f->nt; i++)
+        if (f->t[i].state == T_LEASED && now - f->t[i].leased_at > f->o->lease_timeout_s) {
+            pf_warn("lease of tile %d expired", i);
+            s_requeue(f, i, 1);
+        }
+}
+
+void pf_farm_opts_default(pf_farm_opts_t *o)
+{
+    memset(o, 0, sizeof *o);
+    o->tile_size = 32;
+    o->heartbeat_ms = 1000;
+    o->dead_after = 4;
+    o->lease_timeout_s = 120.0;
+    o->watchdog_s = 30.0;
+    o->min_workers = 1;
+}
+
+static int s_loopback(const char *ep)
+{
+    return strncmp(ep, "ipc://", 6) == 0 || strncmp(ep, "inproc://", 9) == 0 || strstr(ep, "://127.") ||
+           strstr(ep, "://localhost") || strstr(ep, "://[::1]");
+}
+
+int pf_farm_render(const pf_scene_t *scene, const pf_settings_t *settings, unsigned terms, const pf_farm_opts_t *opts,
+                   volatile int *stop, pf_image_t *img, pf_farm_summary_t *sum, pf_error_t *err)
+{
+    memset(sum, 0, sizeof *sum);
+    double t0 = pf_now();
+    s_farm f;
+    memset(&f, 0, sizeof f);
+    f.o = opts;
+    f.sum = sum;
+    f.img = img;
+    f.job = ((uint64_t)getpid() << 32) ^ (uint64_t)(t0 * 1000.0);
+    if (f.job == 0)
+        f.job = 1;
+    pid_t pids[S_MAX_LOCAL] = { 0 };
+    int npids = 0;
+    pf_zap_t *zap = NULL;
+    pthread_t phtid;
+    int ph_started = 0;
+    int rc = PF_OK;
+
+    pf_settings_t s = *settings;
+    if (s.threads <= 0)
+        s.threads = omp_get_num_procs();
+    rc = pf_image_alloc(img, s.width, s.height);
+    if (rc)
+        return pf_error_set(err, rc, NULL, 0, "cannot allocate a %dx%d image", s.width, s.height);
+    int ts = opts->tile_size > 0 ? opts->tile_size : 32;
+    int tx = (s.width + ts - 1) / ts, ty = (s.height + ts - 1) / ts;
+    f.nt = tx * ty;
+    f.t = calloc((size_t)f.nt, sizeof *f.t);
+    f.queue = calloc((size_t)f.nt, sizeof *f.queue);
+    f.w = calloc(S_MAX_WORKERS, sizeof *f.w);
+    if (!f.t || !f.queue || !f.w) {
+        rc = pf_error_set(err, PF_ENOMEM, NULL, 0, "out of memory");
+        goto done;
+    }
+    for (int i = 0; i < f.nt; i++) {
+        s_tile *t = &f.t[i];
+        t->x0 = (uint32_t)((i % tx) * ts);
+        t->y0 = (uint32_t)((i / tx) * ts);
+        t->w = (uint32_t)(t->x0 + (uint32_t)ts <= (uint32_t)s.width ? ts : s.width - (int)t->x0);
+        t->h = (uint32_t)(t->y0 + (uint32_t)ts <= (uint32_t)s.height ? ts : s.height - (int)t->y0);
+        t->owner = -1;
+        f.queue[i] = i;
+    }
+    f.qlen = f.nt;
+
+    /* The socket, with CURVE and its ZAP handler when asked. */
+    f.ctx = zmq_ctx_new();
+    f.sock = f.ctx ? zmq_socket(f.ctx, ZMQ_ROUTER) : NULL;
+    if (!f.sock) {
+        rc = pf_error_set(err, PF_EIO, NULL, 0, "cannot create a ZeroMQ socket: %s", zmq_strerror(zmq_errno()));
+        goto done;
+    }
+    int one = 1, linger = 1000, hwm = 100000;
+    int64_t maxmsg = PF_PROTO_MAX_MESSAGE;
+    zmq_setsockopt(f.sock, ZMQ_ROUTER_MANDATORY, &one, sizeof one);
+    zmq_setsockopt(f.sock, ZMQ_LINGER, &linger, sizeof linger);
+    zmq_setsockopt(f.sock, ZMQ_MAXMSGSIZE, &maxmsg, sizeof maxmsg);
+    zmq_setsockopt(f.sock, ZMQ_SNDHWM, &hwm, sizeof hwm);
+    zmq_setsockopt(f.sock, ZMQ_RCVHWM, &hwm, sizeof hwm);
+    if (opts->curve_secret) {
+        char pub[41], sec[41];
+        char (*keys)[41] = NULL;
+        size_t nkeys = 0;
+        if (pf_keyfile_read(opts->curve_secret, pub, sec, err) != PF_OK) {
+            rc = PF_EINVAL;
+            goto done;
+        }
+        if (!opts->curve_allow) {
+            rc = pf_error_set(err, PF_EINVAL, NULL, 0, "CURVE needs a list of allowed worker keys (--curve-allow)");
+            goto done;
+        }
+        if (pf_keyfile_read_list(opts->curve_allow, &keys, &nkeys, err) != PF_OK) {
+            rc = PF_EINVAL;
+            goto done;
+        }
+        zap = pf_zap_start(f.ctx, (const char(*)[41])keys, nkeys);
+        free(keys);
+        if (!zap) {
+            rc = pf_error_set(err, PF_EIO, NULL, 0, "cannot start the CURVE authentication handler");
+            goto done;
+        }
+        zmq_setsockopt(f.sock, ZMQ_ZAP_DOMAIN, "photonfarm", 10);
+        zmq_setsockopt(f.sock, ZMQ_CURVE_SERVER, &one, sizeof one);
+        zmq_setsockopt(f.sock, ZMQ_CURVE_SECRETKEY, sec, 40);
+        pf_info("CURVE on: %zu worker key%s allowed", nkeys, nkeys == 1 ? "" : "s");
+    }
+    const char *bind = opts->bind ? opts->bind : "tcp://127.0.0.1:*";
+    if (zmq_bind(f.sock, bind) != 0) {
+        rc = pf_error_set(err, PF_EIO, NULL, 0, "cannot bind %s: %s", bind, zmq_strerror(zmq_errno()));
+        goto done;
+    }
+    char endpoint[256];
+    size_t eplen = sizeof endpoint;
+    zmq_getsockopt(f.sock, ZMQ_LAST_ENDPOINT, endpoint, &eplen);
+    if (!s_loopback(endpoint) && !opts->curve_secret)
+        pf_warn("listening on %s without CURVE: anyone who can reach it can join and read the scene "
+                "(see 'photonfarm keygen')", endpoint);
+    pf_info("listening on %s", endpoint);
+
+    /* Local workers, started now so they connect during the photon pass. */
+    if (opts->local_workers > 0) {
+        char exe[4096];
+        if (opts->worker_exe)
+            snprintf(exe, sizeof exe, "%s", opts->worker_exe);
+        else if (pf_spawn_default_worker_exe(exe, sizeof exe) != 0) {
+            rc = pf_error_set(err, PF_EIO, NULL, 0, "cannot find photonfarm-worker beside this program");
+            goto done;
+        }
+        if (access(exe, X_OK) != 0) {
+            rc = pf_error_set(err, PF_EIO, exe, 0, "cannot run the worker program: %s", strerror(errno));
+            goto done;
+        }
+        int wt = opts->worker_threads > 0 ? opts->worker_threads
+                                          : (omp_get_num_procs() / opts->local_workers > 0
+                                                 ? omp_get_num_procs() / opts->local_workers
+                                                 : 1);
+        char threads[16], name[64];
+        snprintf(threads, sizeof threads, "%d", wt);
+        int nloc = opts->local_workers < S_MAX_LOCAL ? opts->local_workers : S_MAX_LOCAL;
+        for (int i = 0; i < nloc; i++) {
+            snprintf(name, sizeof name, "local-%d", i + 1);
+            char *argv[] = { exe, "--connect", endpoint, "--threads", threads, "--name", name, "--exit-on-bye",
+                             pf_log_get_level() > PF_LOG_INFO ? "-q" : NULL, NULL };
+            pid_t pid = pf_spawn(exe, argv);
+            if (pid < 0) {
+                rc = pf_error_set(err, PF_EIO, exe, 0, "cannot start a worker: %s", strerror(errno));
+                goto done;
+            }
+            pids[npids++] = pid;
+        }
+        pf_info("started %d local worker%s with %d thread%s each", npids, npids == 1 ? "" : "s", wt,
+                wt == 1 ? "" : "s");
+    }
+
+    /* The photon pass runs beside the event loop. */
+    f.ph.scene = scene;
+    f.ph.settings = s;
+    if (pthread_create(&phtid, NULL, s_photon_thread, &f.ph) != 0) {
+        rc = pf_error_set(err, PF_ENOMEM, NULL, 0, "cannot start the photon pass thread");
+        goto done;
+    }
+    ph_started = 1;
+
+    pf_progress_t bar;
+    pf_progress_begin(&bar, "photons", opts->show_progress);
+    double render_start = 0.0, last_log = pf_now(), no_worker_since = pf_now();
+    while (f.ndone < f.nt) {
+        if (stop && *stop) {
+            rc = pf_error_set(err, PF_EINTERRUPTED, NULL, 0, "interrupted");
+            break;
+        }
+        if (!f.job_ready && __atomic_load_n(&f.ph.done, __ATOMIC_ACQUIRE)) {
+            pthread_join(phtid, NULL);
+            ph_started = 0;
+            if (f.ph.rc != PF_OK) {
+                *err = f.ph.err;
+                rc = f.ph.rc;
+                break;
+            }
+            sum->photons = f.ph.stats;
+            sum->photon_s = pf_now() - t0;
+            pf_progress_end(&bar);
+            pf_info("photon pass: %llu global + %llu caustic photons, %llu irradiance points; scene blob %zu bytes, "
+                    "map blob %zu bytes (%.1f bytes per photon)",
+                    (unsigned long long)f.ph.stats.global_stored, (unsigned long long)f.ph.stats.caustic_stored,
+                    (unsigned long long)f.ph.stats.irradiance_points, f.ph.scene_blob.len, f.ph.maps_blob.len,
+                    (double)f.ph.maps_blob.len /
+                        (double)(f.ph.stats.global_stored + f.ph.stats.caustic_stored + f.ph.stats.irradiance_points + 1));
+            f.jobmsg = (pf_msg_job_t){ f.ph.scene_hash, f.ph.scene_blob.len, f.ph.maps_hash, f.ph.maps_blob.len,
+                                       s, terms, (uint32_t)ts };
+            f.job_ready = 1;
+            render_start = pf_now();
+            pf_progress_begin(&bar, "render", opts->show_progress);
+            for (int i = 0; i < f.nw; i++)
+                if (f.w[i].state == W_HELLO)
+                    s_send_job(&f, i);
+        }
+        zmq_pollitem_t it = { f.sock, 0, ZMQ_POLLIN, 0 };
+        int pr = zmq_poll(&it, 1, 50);
+        if (pr < 0 && zmq_errno() != EINTR) {
+            rc = pf_error_set(err, PF_EIO, NULL, 0, "poll failed: %s", zmq_strerror(zmq_errno()));
+            break;
+        }
+        for (int burst = 0; pr > 0 && burst < 256; burst++) {
+            zmq_msg_t id, body;
+            zmq_msg_init(&id);
+            if (zmq_msg_recv(&id, f.sock, ZMQ_DONTWAIT) < 0) {
+                zmq_msg_close(&id);
+                break;
+            }
+            zmq_msg_init(&body);
+            int more = zmq_msg_more(&id);
+            if (!more || zmq_msg_recv(&body, f.sock, ZMQ_DONTWAIT) < 0) {
+                s_bad(&f, "a peer", "empty message");
+            } else {
+                if (zmq_msg_more(&body)) { /* our protocol is one frame; drain and drop the rest */
+                    s_bad(&f, "a peer", "multi-frame message");
+                    while (zmq_msg_more(&body)) {
+                        zmq_msg_close(&body);
+                        zmq_msg_init(&body);
+                        zmq_msg_recv(&body, f.sock, 0);
+                    }
+                } else if (zmq_msg_size(&id) <= sizeof f.w[0].id) {
+                    s_on_frame(&f, zmq_msg_data(&id), zmq_msg_size(&id), zmq_msg_data(&body), zmq_msg_size(&body));
+                }
+            }
+            zmq_msg_close(&body);
+            zmq_msg_close(&id);
+        }
+        s_tick(&f);
+        if (f.job_ready)
+            s_lease_all(&f);
+        int alive = 0;
+        for (int i = 0; i < f.nw; i++)
+            alive += f.w[i].state == W_READY || f.w[i].state == W_JOB_SENT || f.w[i].state == W_HELLO;
+        if (alive)
+            no_worker_since = pf_now();
+        else if (opts->max_wait_s > 0 && pf_now() - no_worker_since > opts->max_wait_s) {
+            rc = pf_error_set(err, PF_ETIMEOUT, NULL, 0, "no worker for %.0f s: giving up", opts->max_wait_s);
+            break;
+        }
+        if (npids) { /* a local worker that exits on its own is reported, not waited for */
+            for (int i = 0; i < npids; i++) {
+                int status;
+                if (pids[i] > 0 && waitpid(pids[i], &status, WNOHANG) == pids[i]) {
+                    pf_warn("local worker process %d exited (%s %d)", (int)pids[i],
+                            WIFSIGNALED(status) ? "signal" : "status",
+                            WIFSIGNALED(status) ? WTERMSIG(status) : WEXITSTATUS(status));
+                    pids[i] = 0;
+                }
+            }
+        }
+        if (f.job_ready) {
+            /* Workers alive, and the map transfers still under way. */
+            char note[256];
+            int nn = snprintf(note, sizeof note, "workers %d", alive);
+            uint64_t blobs = f.ph.scene_blob.len + f.ph.maps_blob.len;
+            for (int i = 0; i < f.nw && nn < (int)sizeof note - 40; i++)
+                if (f.w[i].state == W_JOB_SENT && f.w[i].blob_sent > 0 && f.w[i].blob_sent < blobs)
+                    nn += snprintf(note + nn, sizeof note - (size_t)nn, "  maps->%.12s %d%%", f.w[i].name,
+                                   (int)(100.0 * (double)f.w[i].blob_sent / (double)blobs));
+            pf_progress_update_note(&bar, f.ndone, f.nt, note);
+            if (!bar.enabled && pf_now() - last_log > 5.0) {
+                last_log = pf_now();
+                pf_info("render: %d/%d tiles, %d worker%s alive", f.ndone, f.nt, alive, alive == 1 ? "" : "s");
+            }
+        }
+    }
+    pf_progress_end(&bar);
+    if (rc == PF_OK)
+        sum->render_s = pf_now() - render_start;
+
+    /* Job over: tell everyone, then let local workers go. Workers declared
+     * dead are told too: one that was only stopped (SIGSTOP) may be back. */
+    for (int i = 0; i < f.nw; i++)
+        if (f.w[i].state != W_FREE) {
+            pf_msg_t m = { .type = PF_MSG_JOB_END };
+            s_send(&f, i, &m);
+            pf_msg_t b = { .type = PF_MSG_BYE };
+            snprintf(b.u.bye.reason, sizeof b.u.bye.reason, "%s", rc == PF_OK ? "job complete" : "coordinator stopping");
+            s_send(&f, i, &b);
+        }
+    for (int i = 0; i < f.nw && sum->nper_worker < 64; i++)
+        if (f.w[i].tiles) {
+            pf_farm_worker_stat_t *ws = &sum->per_worker[sum->nper_worker++];
+            snprintf(ws->name, sizeof ws->name, "%s", f.w[i].name);
+            ws->tiles = f.w[i].tiles;
+        }
+
+done:
+    if (ph_started) {
+        pthread_join(phtid, NULL); /* the photon pass cannot be cancelled midway; it ends on its own */
+    }
+    if (npids)
+        pf_spawn_stop_all(pids, npids, 3.0);
+    if (f.sock)
+        zmq_close(f.sock);
+    if (zap)
+        sum->refused += (uint64_t)pf_zap_stop(&zap);
+    if (f.ctx)
+        zmq_ctx_term(f.ctx);
+    pf_photon_maps_free(&f.ph.maps);
+    pf_lights_destroy(&f.ph.lights);
+    pf_accel_destroy(&f.ph.accel);
+    pf_buf_free(&f.ph.scene_blob);
+    pf_buf_free(&f.ph.maps_blob);
+    pf_buf_free(&f.out);
+    free(f.t);
+    free(f.queue);
+    free(f.w);
+    if (rc != PF_OK) {
+        pf_image_free(img);
+    } else {
+        size_t neg = 0;
+        sum->bad_pixels = pf_image_count_bad(img, &neg) + neg;
+    }
+    sum->total_s = pf_now() - t0;
+    return rc;
+}
+
+void pf_farm_summary_log(const pf_farm_summary_t *s)
+{
+    pf_info("summary: photon pass %.2f s, render %.2f s, total %.2f s", s->photon_s, s->render_s, s->total_s);
+    pf_info("summary: %llu tiles, %.1f MB sent (%.1f MB of scene and maps), %llu re-issued, %llu duplicates dropped, "
+            "%llu malformed messages dropped, %d worker%s seen, %d lost, %llu refused",
+            (unsigned long long)s->results, s->bytes_sent / 1e6, s->blob_bytes / 1e6, (unsigned long long)s->reissued,
+            (unsigned long long)s->duplicates, (unsigned long long)s->malformed, s->workers_seen,
+            s->workers_seen == 1 ? "" : "s", s->workers_lost, (unsigned long long)s->refused);
+    for (int i = 0; i < s->nper_worker; i++)
+        pf_info("summary: worker %s rendered %llu tiles", s->per_worker[i].name,
+                (unsigned long long)s->per_worker[i].tiles);
+}

@@ -1,0 +1,60 @@
+/* farm.h: a render job served to worker processes over ZeroMQ. The
+ * coordinator traces the photon maps once (in a thread, while the main loop
+ * already answers workers), serializes the scene and the maps, and leases
+ * image tiles to workers; results are validated and stitched. Workers may be
+ * local processes this module starts (--workers N) or cluster workers that
+ * connect to a bound endpoint. */
+#ifndef PF_FARM_H
+#define PF_FARM_H
+
+#include <stdint.h>
+
+#include "common/image.h"
+#include "common/scene.h"
+#include "coordinator/photon_trace.h"
+
+typedef struct pf_farm_opts {
+    const char *bind;         /* endpoint to bind; NULL: tcp://127.0.0.1:* (loopback, ephemeral port) */
+    int local_workers;        /* worker processes to start on this machine */
+    int worker_threads;       /* threads per local worker (0: cores / workers, at least 1) */
+    int min_workers;          /* tiles are not leased before this many workers are ready */
+    const char *worker_exe;   /* NULL: photonfarm-worker beside this executable */
+    int tile_size;            /* pixels per tile side (default 32) */
+    int heartbeat_ms;         /* default 1000 */
+    int dead_after;           /* heartbeat intervals of silence before a worker is dead (default 4) */
+    double lease_timeout_s;   /* a lease older than this returns its tile to the queue (default 60) */
+    double watchdog_s;        /* a worker holding tiles whose progress counter stalls this long is stuck (default 30) */
+    double max_wait_s;        /* give up when no worker has been ready for this long (0: wait forever) */
+    const char *curve_secret; /* coordinator key file (public + secret), NULL: no CURVE */
+    const char *curve_allow;  /* file of allowed worker public keys (required with curve_secret) */
+    int show_progress;
+} pf_farm_opts_t;
+
+void pf_farm_opts_default(pf_farm_opts_t *o);
+
+typedef struct pf_farm_worker_stat {
+    char name[64];
+    uint64_t tiles;
+} pf_farm_worker_stat_t;
+
+typedef struct pf_farm_summary {
+    pf_photon_stats_t photons;
+    double photon_s, render_s, total_s;
+    uint64_t bytes_sent, blob_bytes, results;
+    uint64_t reissued, duplicates, malformed, refused;
+    int workers_seen, workers_lost;
+    pf_farm_worker_stat_t per_worker[64];
+    int nper_worker;
+    size_t bad_pixels;
+} pf_farm_summary_t;
+
+/* Renders scene with settings through workers into *img (allocated here).
+ * Blocks until the image is complete, an error, or *stop becomes non-zero
+ * (PF_EINTERRUPTED). Local workers are stopped on every path. */
+int pf_farm_render(const pf_scene_t *scene, const pf_settings_t *settings, unsigned terms, const pf_farm_opts_t *opts,
+                   volatile int *stop, pf_image_t *img, pf_farm_summary_t *summary, pf_error_t *err);
+
+/* Prints the summary as log lines. */
+void pf_farm_summary_log(const pf_farm_summary_t *s);
+
+#endif
