@@ -503,7 +503,7 @@ t5() {
     note "$(tr '\n' ' ' <"$T/inj_forge.out")"
     wait_exit "$coord" 60
     check "5: the render completes under forged results (exit $rc)" eq "$rc" 0 || show "$T/forge_coord.err" 8
-    known_bug "5: results forged for tiles never leased to the sender do not reach the image" \
+    check "5: results forged for tiles never leased to the sender do not reach the image" \
         same "$T/forge_coord.pfm" "$T/ref_big.pfm"
     wait_exit "$ww" 10
     stop "$ww"

@@ -498,8 +498,8 @@ static void s_send_hello(s_worker *w)
         s_log(w, PF_LOG_ERROR, "cannot encode HELLO");
         return;
     }
-    /* With ZMQ_IMMEDIATE the DEALER takes nothing until the connection is
-     * up; the loop retries until it is (or the HELLO timeout expires). */
+    /* Queued until the connection is up; the loop sends it again when no
+     * WELCOME comes within the HELLO timeout. */
     if (zmq_send(w->sock, w->enc.data, w->enc.len, ZMQ_DONTWAIT) >= 0) {
         w->hello_sent = 1;
         s_log(w, PF_LOG_DEBUG, "HELLO sent to %s", w->opts->endpoint);
@@ -954,11 +954,13 @@ static int s_open(s_worker *w)
         fprintf(stderr, "photonfarm-worker: cannot create a socket: %s\n", zmq_strerror(errno));
         return PF_WORKER_EXIT_FATAL;
     }
-    int linger = S_LINGER_MS, one = 1;
+    int linger = S_LINGER_MS;
     int64_t maxmsg = PF_PROTO_MAX_MESSAGE;
     int rc = zmq_setsockopt(w->sock, ZMQ_LINGER, &linger, sizeof linger);
     rc |= zmq_setsockopt(w->sock, ZMQ_MAXMSGSIZE, &maxmsg, sizeof maxmsg);
-    rc |= zmq_setsockopt(w->sock, ZMQ_IMMEDIATE, &one, sizeof one);
+    /* No ZMQ_IMMEDIATE: with it libzmq drops the unread messages of a
+     * connection the peer closes, and the coordinator's last JOB_END/BYE were
+     * lost half of the time (the farm test caught it). */
     if (w->curve) {
         /* Z85 keys are passed as 41 bytes, the terminating NUL included. */
         rc |= zmq_setsockopt(w->sock, ZMQ_CURVE_SERVERKEY, w->server_key, 41);
