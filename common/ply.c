@@ -19,6 +19,7 @@
  *
  * A mirroring transform (det < 0) reverses the winding and negates the
  * transformed normals, as in obj.c. */
+#include "common/fastfloat.h"
 #include "common/scene.h"
 
 #include <errno.h>
@@ -359,38 +360,6 @@ static int s_token(s_ply_t *p, char *tok, size_t cap)
     return 0;
 }
 
-/* Parses a plain decimal ("-12.5", "0.0378297") of at most 8 significant
- * digits, the form nearly every exporter writes, without strtof. m <= 2^24
- * and 10^k (k <= 10) are exact floats, so one IEEE division gives the
- * correctly rounded result, as strtof would (Clinger's fast path). Returns 0
- * for anything else (exponents, more digits, nan, inf) to fall back on strtof. */
-static int s_fast_float(const char *p, const char **end, float *out)
-{
-    static const float pow10[] = { 1e0f, 1e1f, 1e2f, 1e3f, 1e4f, 1e5f, 1e6f, 1e7f, 1e8f, 1e9f, 1e10f };
-    const char *s = p;
-    int neg = *s == '-';
-    s += neg || *s == '+';
-    uint32_t m = 0;
-    int exp = 0, any = 0;
-    for (; *s >= '0' && *s <= '9'; s++, any = 1) {
-        if (m >= 10000000u)
-            return 0;
-        m = m * 10 + (uint32_t)(*s - '0');
-    }
-    if (*s == '.') {
-        for (s++; *s >= '0' && *s <= '9'; s++, any = 1, exp--) {
-            if (m >= 10000000u || exp <= -10)
-                return 0;
-            m = m * 10 + (uint32_t)(*s - '0');
-        }
-    }
-    if (!any || *s == 'e' || *s == 'E' || m > (1u << 24))
-        return 0;
-    float f = (float)m / pow10[-exp];
-    *out = neg ? -f : f;
-    *end = s;
-    return 1;
-}
 
 /* Reads one value of a scalar type as a double (exact for every integer type). */
 static int s_value(s_ply_t *p, int type, double *out)
@@ -407,7 +376,7 @@ static int s_value(s_ply_t *p, int type, double *out)
         if (type == S_FLOAT) {
             const char *fend;
             float f;
-            if (s_fast_float(tok, &fend, &f) && !*fend) {
+            if (pf_fast_float(tok, &fend, &f) && !*fend) {
                 *out = f;
                 return PF_OK;
             }
