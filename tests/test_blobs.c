@@ -29,20 +29,9 @@
 #include "proto/sceneblob.h"
 #include "proto/wire.h"
 
-static int s_passed, s_failed;
+#include "check.h"
 
-#define CHECK(cond, ...)                                                                  \
-    do {                                                                                  \
-        if (cond) {                                                                       \
-            s_passed++;                                                                   \
-        } else {                                                                          \
-            if (s_failed++ < 40) {                                                        \
-                fprintf(stderr, "%s:%d: check failed: %s: ", __FILE__, __LINE__, #cond); \
-                fprintf(stderr, __VA_ARGS__);                                             \
-                fputc('\n', stderr);                                                      \
-            }                                                                             \
-        }                                                                                 \
-    } while (0)
+
 
 static uint64_t s_state = 0xb10b5;
 static uint64_t s_next(void)

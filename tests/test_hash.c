@@ -5,18 +5,8 @@
 
 #include "common/hash.h"
 
-static int s_pass, s_fail;
-#define CHECK(c, ...)                                                                                                  \
-    do {                                                                                                               \
-        if (c)                                                                                                         \
-            s_pass++;                                                                                                  \
-        else {                                                                                                         \
-            s_fail++;                                                                                                  \
-            printf("FAIL %s:%d: ", __FILE__, __LINE__);                                                                \
-            printf(__VA_ARGS__);                                                                                       \
-            printf("\n");                                                                                              \
-        }                                                                                                              \
-    } while (0)
+#include "check.h"
+
 
 int main(void)
 {
@@ -47,6 +37,6 @@ int main(void)
     CHECK(distinct, "prefixes collide");
     CHECK(flips, "a flipped byte went unnoticed");
     CHECK(pf_hash_bytes(1, "abc", 3) != pf_hash_bytes(2, "abc", 3), "the seed is ignored");
-    printf("%d passed, %d failed\n", s_pass, s_fail);
-    return s_fail ? 1 : 0;
+    printf("%d passed, %d failed\n", s_passed, s_failed);
+    return s_failed ? 1 : 0;
 }

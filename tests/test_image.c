@@ -24,25 +24,17 @@
 #include "common/metrics.h"
 #include "coordinator/compare.h"
 
-static int s_pass, s_fail;
+#include "check.h"
 
-#define CHECK(cond)                                                                  \
-    do {                                                                             \
-        if (cond) {                                                                  \
-            s_pass++;                                                                \
-        } else {                                                                     \
-            s_fail++;                                                                \
-            fprintf(stderr, "%s:%d: check failed: %s\n", __FILE__, __LINE__, #cond); \
-        }                                                                            \
-    } while (0)
+
 
 #define CHECK_NEAR(a, b, tol)                                                                        \
     do {                                                                                             \
         double a_ = (a), b_ = (b);                                                                   \
         if (fabs(a_ - b_) <= (tol)) {                                                                \
-            s_pass++;                                                                                \
+            s_passed++;                                                                                \
         } else {                                                                                     \
-            s_fail++;                                                                                \
+            s_failed++;                                                                                \
             fprintf(stderr, "%s:%d: check failed: %s = %.17g, expected %s = %.17g (tol %g)\n", __FILE__, \
                     __LINE__, #a, a_, #b, b_, (double)(tol));                                        \
         }                                                                                            \
@@ -135,10 +127,10 @@ static void s_expect_read_error(const char *name, const void *data, size_t n, co
     CHECK(img.rgb == NULL && img.width == 0 && img.height == 0);
     CHECK(strstr(err.msg, path) == err.msg);
     if (needle && !strstr(err.msg, needle)) {
-        s_fail++;
+        s_failed++;
         fprintf(stderr, "%s: message \"%s\" lacks \"%s\"\n", name, err.msg, needle);
     } else {
-        s_pass++;
+        s_passed++;
     }
     pf_image_free(&img);
     unlink(path);
@@ -967,6 +959,6 @@ int main(void)
     test_references();
     test_cli();
     s_cleanup();
-    printf("%d passed, %d failed\n", s_pass, s_fail);
-    return s_fail ? 1 : 0;
+    printf("%d passed, %d failed\n", s_passed, s_failed);
+    return s_failed ? 1 : 0;
 }

@@ -26,20 +26,9 @@
 
 #include "common/kdtree.h"
 
-static int s_passed, s_failed;
+#include "check.h"
 
-#define CHECK(cond, ...)                                                   \
-    do {                                                                   \
-        if (cond) {                                                        \
-            s_passed++;                                                    \
-        } else {                                                           \
-            if (s_failed++ < 30) {                                         \
-                fprintf(stderr, "%s:%d: check failed: %s: ", __FILE__, __LINE__, #cond); \
-                fprintf(stderr, __VA_ARGS__);                              \
-                fputc('\n', stderr);                                       \
-            }                                                              \
-        }                                                                  \
-    } while (0)
+
 
 /* ---- random numbers (SplitMix64; the test only needs repeatability) ---- */
 

@@ -14,16 +14,8 @@
 #include "common/log.h"
 #include "common/scene.h"
 
-static int s_pass, s_fail;
-#define CHECK(cond)                                                                   \
-    do {                                                                              \
-        if (cond) {                                                                   \
-            s_pass++;                                                                 \
-        } else {                                                                      \
-            s_fail++;                                                                 \
-            fprintf(stderr, "%s:%d: check failed: %s\n", __FILE__, __LINE__, #cond); \
-        }                                                                             \
-    } while (0)
+#include "check.h"
+
 /* The call failed with status st and a message containing where. */
 #define CHECK_ERR(rc, st, err, where)                                                                      \
     do {                                                                                                   \
@@ -838,6 +830,6 @@ int main(void)
         unlink(path);
     }
     rmdir(s_tmp);
-    printf("%d passed, %d failed\n", s_pass, s_fail);
-    return s_fail ? 1 : 0;
+    printf("%d passed, %d failed\n", s_passed, s_failed);
+    return s_failed ? 1 : 0;
 }

@@ -21,20 +21,9 @@
 #include "proto/messages.h"
 #include "proto/wire.h"
 
-static int s_passed, s_failed;
+#include "check.h"
 
-#define CHECK(cond, ...)                                                                  \
-    do {                                                                                  \
-        if (cond) {                                                                       \
-            s_passed++;                                                                   \
-        } else {                                                                          \
-            if (s_failed++ < 40) {                                                        \
-                fprintf(stderr, "%s:%d: check failed: %s: ", __FILE__, __LINE__, #cond); \
-                fprintf(stderr, __VA_ARGS__);                                             \
-                fputc('\n', stderr);                                                      \
-            }                                                                             \
-        }                                                                                 \
-    } while (0)
+
 
 /* SplitMix64: the test only needs repeatability. */
 static uint64_t s_state = 0x5eed;

@@ -30,18 +30,8 @@
 #include "coordinator/photon_trace.h"
 #include "worker/render.h"
 
-static int s_pass, s_fail;
-#define CHECK(cond, ...)                                                                                               \
-    do {                                                                                                               \
-        if (cond) {                                                                                                    \
-            s_pass++;                                                                                                  \
-        } else {                                                                                                       \
-            s_fail++;                                                                                                  \
-            printf("FAIL %s:%d: ", __FILE__, __LINE__);                                                                \
-            printf(__VA_ARGS__);                                                                                       \
-            printf("\n");                                                                                              \
-        }                                                                                                              \
-    } while (0)
+#include "check.h"
+
 
 /* A geodesic sphere (subdivided octahedron), wound so the face normals point
  * inwards: the emission and the diffuse side face the centre. */
@@ -287,6 +277,6 @@ int main(int argc, char **argv)
         s_accuracy("scenes/cornell-box/scene.json", "tests/data/references/cornell-box-128.pfm", 0.0035, 0.015);
         s_accuracy("scenes/cornell-spheres/scene.json", "tests/data/references/cornell-spheres-128.pfm", 0.0035, 0.015);
     }
-    printf("%d passed, %d failed\n", s_pass, s_fail);
-    return s_fail ? 1 : 0;
+    printf("%d passed, %d failed\n", s_passed, s_failed);
+    return s_failed ? 1 : 0;
 }

@@ -21,19 +21,9 @@
 #include "common/log.h"
 #include "common/scene.h"
 
-static int g_pass, g_fail;
+#include "check.h"
 
-#define CHECK(cond, ...)                                          \
-    do {                                                          \
-        if (cond) {                                               \
-            g_pass++;                                             \
-        } else {                                                  \
-            g_fail++;                                             \
-            printf("FAIL %s:%d: %s: ", __FILE__, __LINE__, #cond); \
-            printf(__VA_ARGS__);                                  \
-            printf("\n");                                         \
-        }                                                         \
-    } while (0)
+
 
 static int near(float a, float b, float tol) { return fabsf(a - b) <= tol; }
 static int near3(pf_vec3 a, pf_vec3 b, float tol) { return near(a.x, b.x, tol) && near(a.y, b.y, tol) && near(a.z, b.z, tol); }
@@ -594,6 +584,6 @@ int main(void)
     test_shipped();
     /* Not a check: wall time depends on the machine's load. Normally ~0.1 s. */
     printf("scene_json: %.2f s\n", pf_now() - t0);
-    printf("%d passed, %d failed\n", g_pass, g_fail);
-    return g_fail ? 1 : 0;
+    printf("%d passed, %d failed\n", s_passed, s_failed);
+    return s_failed ? 1 : 0;
 }

@@ -53,19 +53,8 @@
 #include "proto/sceneblob.h"
 #include "worker/render.h"
 
-static int s_pass, s_fail;
-#define CHECK(cond, ...)                                                                                               \
-    do {                                                                                                               \
-        if (cond) {                                                                                                    \
-            s_pass++;                                                                                                  \
-        } else {                                                                                                       \
-            s_fail++;                                                                                                  \
-            printf("FAIL %s:%d: ", __FILE__, __LINE__);                                                                \
-            printf(__VA_ARGS__);                                                                                       \
-            printf("\n");                                                                                              \
-            fflush(stdout);                                                                                            \
-        }                                                                                                              \
-    } while (0)
+#include "check.h"
+
 
 /* ------------------------------------------------------------------ keyfile */
 
@@ -323,7 +312,7 @@ static char *s_read_file(const char *path)
 static void s_end_run(const char *run, int fails_before)
 {
     s_kill_child();
-    if (s_fail > fails_before) {
+    if (s_failed > fails_before) {
         char *log = s_read_file(s_log_path);
         printf("---- worker log of run '%s' ----\n%s---- end of log ----\n", run, log ? log : "(none)\n");
         free(log);
@@ -799,7 +788,7 @@ static int s_render_all(s_coord_t *c, const s_fixture_t *fx, uint64_t job, uint3
 /* Run A: the whole conversation with --exit-on-bye. */
 static void s_run_render(const char *exe, const s_fixture_t *fx)
 {
-    int fails = s_fail;
+    int fails = s_failed;
     s_coord_t c;
     if (s_coord_open(&c, NULL)) {
         CHECK(0, "cannot bind the test coordinator");
@@ -937,7 +926,7 @@ out:
 /* Run B: long-lived worker: BYE, a silent coordinator, SIGTERM. */
 static void s_run_reconnect(const char *exe)
 {
-    int fails = s_fail;
+    int fails = s_failed;
     s_coord_t c;
     if (s_coord_open(&c, NULL)) {
         CHECK(0, "cannot bind the test coordinator");
@@ -992,7 +981,7 @@ out:
 /* Run C: REFUSE ends the worker with exit code 3 and the reason. */
 static void s_run_refuse(const char *exe)
 {
-    int fails = s_fail;
+    int fails = s_failed;
     s_coord_t c;
     if (s_coord_open(&c, NULL)) {
         CHECK(0, "cannot bind the test coordinator");
@@ -1045,7 +1034,7 @@ static void s_run_curve(const char *exe)
               pf_keyfile_write(bpath, bad_pub, bad_sec, &err) == 0,
           "key files: %s", err.msg);
     for (int run = 0; run < 2; run++) {
-        int fails = s_fail;
+        int fails = s_failed;
         s_coord_t c;
         if (s_coord_open(&c, server_sec)) {
             CHECK(0, "cannot bind the CURVE test coordinator");
@@ -1100,7 +1089,7 @@ static void s_run_usage(const char *exe)
           1 },
     };
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
-        int fails = s_fail;
+        int fails = s_failed;
         s_start_worker(exe, cases[i].args);
         int code = s_wait_worker(10);
         CHECK(code == cases[i].code, "usage case %zu (%s %s): exit code %d, want %d", i,
@@ -1138,6 +1127,6 @@ int main(int argc, char **argv)
         printf("unknown mode '%s'\n0 passed, 1 failed\n", mode);
         return 1;
     }
-    printf("%d passed, %d failed\n", s_pass, s_fail);
-    return s_fail ? 1 : 0;
+    printf("%d passed, %d failed\n", s_passed, s_failed);
+    return s_failed ? 1 : 0;
 }
