@@ -204,6 +204,8 @@ static void s_lease(s_farm *f, int wi)
             return;
         f->leasing = 1;
     }
+    if (w->held == 0 && f->qlen > 0)
+        w->progress_at = pf_now(); /* the stall clock runs only while it holds tiles */
     while (w->held < w->credit && f->qlen > 0) {
         int ti = f->queue[f->qhead];
         f->qhead = (f->qhead + 1) % f->nt;
@@ -414,13 +416,17 @@ static void s_on_frame(s_farm *f, const uint8_t *id, size_t idlen, const uint8_t
         return;
     }
     s_worker *w = &f->w[wi];
-    w->last_seen = pf_now();
     if (w->state == W_DEAD) {
-        pf_info("worker %s is back", w->name);
-        w->state = W_HELLO;
-        if (f->job_ready)
-            s_send_job(f, wi);
+        /* Messages still queued on a dead worker's old connection do not
+         * bring it back (a worker that really is back registers again with a
+         * HELLO); its results still count, as first results or duplicates. */
+        if (m.type == PF_MSG_RESULT && m.job == f->job)
+            s_on_result(f, wi, &m.u.result);
+        else
+            pf_debug("ignored %s from dead worker %s", pf_msg_type_name(m.type), w->name);
+        return;
     }
+    w->last_seen = pf_now();
     if (m.type != PF_MSG_BYE && m.job != f->job && m.type != PF_MSG_HEARTBEAT) {
         pf_debug("dropped %s for job %llu from %s", pf_msg_type_name(m.type), (unsigned long long)m.job, peer);
         return;
@@ -765,12 +771,21 @@ int pf_farm_render(const pf_scene_t *scene, const pf_settings_t *settings, unsig
             snprintf(b.u.bye.reason, sizeof b.u.bye.reason, "%s", rc == PF_OK ? "job complete" : "coordinator stopping");
             s_send(&f, i, &b);
         }
-    for (int i = 0; i < f.nw && sum->nper_worker < 64; i++)
-        if (f.w[i].tiles) {
-            pf_farm_worker_stat_t *ws = &sum->per_worker[sum->nper_worker++];
-            snprintf(ws->name, sizeof ws->name, "%s", f.w[i].name);
-            ws->tiles = f.w[i].tiles;
+    for (int i = 0; i < f.nw; i++) { /* one line per name, also for a worker that registered twice */
+        if (!f.w[i].tiles)
+            continue;
+        int k = 0;
+        while (k < sum->nper_worker && strcmp(sum->per_worker[k].name, f.w[i].name) != 0)
+            k++;
+        if (k == sum->nper_worker) {
+            if (k == 64)
+                continue;
+            snprintf(sum->per_worker[k].name, sizeof sum->per_worker[k].name, "%s", f.w[i].name);
+            sum->per_worker[k].tiles = 0;
+            sum->nper_worker++;
         }
+        sum->per_worker[k].tiles += f.w[i].tiles;
+    }
 
 done:
     if (ph_started) {

@@ -1,10 +1,21 @@
 #!/usr/bin/env bash
 # Installs the Debian/Ubuntu packages photonfarm needs to build and run,
 # only those that are missing. Run as root (or with sudo available).
-# Usage: deploy/install-deps.sh [--check]   (--check: list what is missing, install nothing)
+# Usage: deploy/install-deps.sh [--test] [--check]
+#   --test   also the tools the test suite uses (shellcheck, yamllint,
+#            systemd-analyze, ip/tc for the network-namespace cluster test, python3)
+#   --check  list what is missing, install nothing
 set -euo pipefail
 
 packages=(cmake make gcc pkg-config libzmq3-dev libpng-dev libembree-dev libcjson-dev)
+check_only=0
+for arg in "$@"; do
+  case "$arg" in
+    --test) packages+=(python3 shellcheck yamllint iproute2 systemd) ;;
+    --check) check_only=1 ;;
+    *) echo "install-deps: unknown option $arg (usage: install-deps.sh [--test] [--check])" >&2; exit 2 ;;
+  esac
+done
 
 missing=()
 for p in "${packages[@]}"; do
@@ -18,7 +29,7 @@ if [ "${#missing[@]}" -eq 0 ]; then
   exit 0
 fi
 echo "install-deps: missing: ${missing[*]}"
-if [ "${1:-}" = "--check" ]; then
+if [ "$check_only" = 1 ]; then
   exit 1
 fi
 
