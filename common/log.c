@@ -28,7 +28,10 @@ void pf_log(pf_log_level level, const char *fmt, ...)
     static const char *names[] = { "debug", "info", "warning", "error" };
     char line[2048];
     int n = 0;
-    if (!isatty(STDERR_FILENO)) {
+    if (isatty(STDERR_FILENO)) {
+        /* Clear a progress line that may be drawn; it redraws on its next update. */
+        n = snprintf(line, sizeof line, "\r\033[K");
+    } else {
         struct timespec ts;
         clock_gettime(CLOCK_REALTIME, &ts);
         struct tm tm;

@@ -313,7 +313,7 @@ static void s_on_hello(s_farm *f, const uint8_t *id, size_t idlen, const pf_msg_
     pf_msg_t m = { .type = PF_MSG_WELCOME };
     m.u.welcome = (pf_msg_welcome_t){ w->wid, (uint32_t)f->o->heartbeat_ms };
     s_send(f, wi, &m);
-    pf_info("worker %s joined (%u threads)", w->name, w->threads);
+    pf_info("worker %s joined (%u thread%s)", w->name, w->threads, w->threads == 1 ? "" : "s");
     if (f->job_ready)
         s_send_job(f, wi);
 }
@@ -444,6 +444,8 @@ static void s_on_frame(s_farm *f, const uint8_t *id, size_t idlen, const uint8_t
         break;
     case PF_MSG_BLOB_REQ: s_on_blob_req(f, wi, &m.u.blob_req); break;
     case PF_MSG_READY:
+        if (w->state != W_READY)
+            pf_info("worker %s ready: scene and maps built", w->name);
         w->state = W_READY;
         w->credit = m.u.ready.credit;
         w->progress_at = w->last_seen;
@@ -630,8 +632,10 @@ int pf_farm_render(const pf_scene_t *scene, const pf_settings_t *settings, unsig
         int nloc = opts->local_workers < S_MAX_LOCAL ? opts->local_workers : S_MAX_LOCAL;
         for (int i = 0; i < nloc; i++) {
             snprintf(name, sizeof name, "local-%d", i + 1);
+            /* Local workers report through the coordinator (joins, losses,
+             * the summary); their own lines only for warnings, or all with -v. */
             char *argv[] = { exe, "--connect", endpoint, "--threads", threads, "--name", name, "--exit-on-bye",
-                             pf_log_get_level() > PF_LOG_INFO ? "-q" : NULL, NULL };
+                             pf_log_get_level() <= PF_LOG_DEBUG ? "-v" : "-q", NULL };
             pid_t pid = pf_spawn(exe, argv);
             if (pid < 0) {
                 rc = pf_error_set(err, PF_EIO, exe, 0, "cannot start a worker: %s", strerror(errno));
