@@ -132,32 +132,8 @@ trap 'exit 130' INT TERM
 
 # ---- reporting -------------------------------------------------------------------
 
-pass=0
-fail=0
-skipped=0
-ok() {
-    pass=$((pass + 1))
-    echo "ok      $*"
-}
-bad() {
-    fail=$((fail + 1))
-    echo "FAIL    $*"
-}
-skip() {
-    skipped=$((skipped + 1))
-    echo "SKIP: $*"
-}
-known=0 # failures that are reported bugs (printed as KNOWN BUG, not counted)
-check() {
-    local msg=$1
-    shift
-    if "$@"; then ok "$msg"; else bad "$msg"; fi
-}
-note() { echo "        $*"; }
-show() {
-    [ -s "$1" ] && tail -n "${2:-12}" "$1" | sed "s|^|        $(basename "$1"): |"
-    return 0
-}
+# shellcheck source=tests/lib.sh
+. "$(dirname "$0")/lib.sh"
 
 # ---- small helpers ---------------------------------------------------------------
 

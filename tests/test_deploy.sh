@@ -49,31 +49,8 @@ cleanup() {
 trap cleanup EXIT
 trap 'exit 130' INT TERM
 
-pass=0
-fail=0
-skipped=0
-ok() {
-    pass=$((pass + 1))
-    echo "ok      $*"
-}
-bad() {
-    fail=$((fail + 1))
-    echo "FAIL    $*"
-}
-skip() {
-    skipped=$((skipped + 1))
-    echo "SKIP: $*"
-}
-check() {
-    local msg=$1
-    shift
-    if "$@"; then ok "$msg"; else bad "$msg"; fi
-}
-note() { echo "        $*"; }
-show() {
-    [ -s "$1" ] && tail -n "${2:-10}" "$1" | sed "s|^|        $(basename "$1"): |"
-    return 0
-}
+# shellcheck source=tests/lib.sh
+. "$(dirname "$0")/lib.sh"
 have() { command -v "$1" >/dev/null 2>&1; }
 has() { grep -qE -- "$2" "$1" 2>/dev/null; }
 hasnt() { ! grep -qE -- "$2" "$1" 2>/dev/null; }

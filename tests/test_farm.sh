@@ -78,42 +78,9 @@ cleanup() {
 trap cleanup EXIT
 trap 'exit 130' INT TERM
 
-pass=0
-fail=0
-known=0
+# shellcheck source=tests/lib.sh
+. "$(dirname "$0")/lib.sh"
 
-ok() {
-    pass=$((pass + 1))
-    echo "ok      $*"
-}
-bad() {
-    fail=$((fail + 1))
-    echo "FAIL    $*"
-}
-# check MESSAGE COMMAND...: one check; passes when COMMAND succeeds.
-check() {
-    local msg=$1
-    shift
-    if "$@"; then ok "$msg"; else bad "$msg"; fi
-}
-# known_bug MESSAGE COMMAND...: a check that exposes a reported bug; a
-# failure is printed as KNOWN BUG and does not fail the suite until fixed.
-known_bug() {
-    local msg=$1
-    shift
-    if "$@"; then
-        ok "$msg (known bug appears fixed: make this a plain check)"
-    else
-        known=$((known + 1))
-        echo "KNOWN BUG: $msg"
-    fi
-}
-note() { echo "        $*"; }
-# show FILE [N]: the last lines of a log, indented, for a failure's context.
-show() {
-    [ -s "$1" ] && tail -n "${2:-15}" "$1" | sed "s|^|        $(basename "$1"): |"
-    return 0
-}
 
 # ---- processes ---------------------------------------------------------------
 
