@@ -36,6 +36,7 @@
  * winding and negates the transformed normals, so face and shading normals
  * keep pointing out of the same side of the surface. */
 #include "common/fastfloat.h"
+#include "common/reserve.h"
 #include "common/scene.h"
 
 #include <errno.h>
@@ -104,27 +105,7 @@ typedef struct s_obj {
     int nwarned;
 } s_obj_t;
 
-/* Grows *arr to hold need elements (amortised doubling). */
-static int s_reserve(void **arr, size_t *cap, size_t need, size_t elem)
-{
-    if (need <= *cap)
-        return PF_OK;
-    size_t ncap = *cap ? *cap : 16;
-    while (ncap < need) {
-        if (ncap > SIZE_MAX / 2)
-            return PF_ENOMEM;
-        ncap *= 2;
-    }
-    if (ncap > SIZE_MAX / elem)
-        return PF_ENOMEM;
-    void *p = realloc(*arr, ncap * elem);
-    if (!p)
-        return PF_ENOMEM;
-    *arr = p;
-    *cap = ncap;
-    return PF_OK;
-}
-#define S_RESERVE(o, arr, cap, need) s_reserve((void **)&(arr), &(cap), (need), sizeof *(arr))
+#define S_RESERVE(o, arr, cap, need) pf_reserve((void **)&(arr), &(cap), (need), sizeof *(arr))
 
 static int s_is_ws(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\v' || c == '\f'; }
 static int s_is_eol(char c) { return c == '\0' || c == '\n' || c == '#'; }

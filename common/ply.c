@@ -20,6 +20,7 @@
  * A mirroring transform (det < 0) reverses the winding and negates the
  * transformed normals, as in obj.c. */
 #include "common/fastfloat.h"
+#include "common/reserve.h"
 #include "common/scene.h"
 
 #include <errno.h>
@@ -90,25 +91,6 @@ typedef struct s_ply {
     size_t nprops, cap_props;
 } s_ply_t;
 
-static int s_reserve(void **arr, size_t *cap, size_t need, size_t elem)
-{
-    if (need <= *cap)
-        return PF_OK;
-    size_t ncap = *cap ? *cap : 16;
-    while (ncap < need) {
-        if (ncap > SIZE_MAX / 2)
-            return PF_ENOMEM;
-        ncap *= 2;
-    }
-    if (ncap > SIZE_MAX / elem)
-        return PF_ENOMEM;
-    void *p = realloc(*arr, ncap * elem);
-    if (!p)
-        return PF_ENOMEM;
-    *arr = p;
-    *cap = ncap;
-    return PF_OK;
-}
 
 static uint64_t s_offset(const s_ply_t *p) { return p->base + p->pos; }
 /* Bytes of the file after the read position (0 if the file grew meanwhile). */
@@ -263,7 +245,7 @@ static int s_parse_header(s_ply_t *p)
             }
             if (p->nelems >= S_MAX_ELEMS)
                 return s_header_err(p, "more than %d elements", S_MAX_ELEMS);
-            if (s_reserve((void **)&p->elems, &p->cap_elems, p->nelems + 1, sizeof *p->elems))
+            if (pf_reserve((void **)&p->elems, &p->cap_elems, p->nelems + 1, sizeof *p->elems))
                 return pf_error_set(p->err, PF_ENOMEM, p->path, p->line, "out of memory");
             s_elem_t *e = &p->elems[p->nelems++];
             memset(e, 0, sizeof *e);
@@ -319,7 +301,7 @@ static int s_parse_header(s_ply_t *p)
                     q.role = S_ROLE_NONE;
             if (p->nprops >= S_MAX_PROPS)
                 return s_header_err(p, "more than %d properties", S_MAX_PROPS);
-            if (s_reserve((void **)&p->props, &p->cap_props, p->nprops + 1, sizeof *p->props))
+            if (pf_reserve((void **)&p->props, &p->cap_props, p->nprops + 1, sizeof *p->props))
                 return pf_error_set(p->err, PF_ENOMEM, p->path, p->line, "out of memory");
             p->props[p->nprops++] = q;
             e->n++;
@@ -486,7 +468,7 @@ static int s_read_face(s_ply_t *p, const s_prop_t *q, s_build_t *b, uint64_t fac
     uint64_t left = s_left(p);
     if (p->format == S_ASCII ? n > left / 2 + 1 : n > left / s_size[q->type])
         return s_body_err(p, "face %" PRIu64 " with %" PRIu64 " vertices runs past the end of the file", face, n);
-    if (s_reserve((void **)&b->idx, &b->cap_idx, 3 * (b->ntris + n - 2), sizeof *b->idx))
+    if (pf_reserve((void **)&b->idx, &b->cap_idx, 3 * (b->ntris + n - 2), sizeof *b->idx))
         return pf_error_set(p->err, PF_ENOMEM, p->path, 0, "out of memory");
     uint32_t first = 0, prev = 0;
     for (uint64_t k = 0; k < n; k++) {
@@ -655,7 +637,7 @@ int pf_ply_load(pf_scene_t *scene, const char *path, const pf_xform_t *xf, uint3
     b.pos = malloc((b.nverts ? b.nverts : 1) * sizeof *b.pos);
     b.nrm = normals ? malloc((b.nverts ? b.nverts : 1) * sizeof *b.nrm) : NULL;
     if (!b.pos || (normals && !b.nrm) ||
-        s_reserve((void **)&b.idx, &b.cap_idx, 3 * (fe->count ? fe->count : 1), sizeof *b.idx)) {
+        pf_reserve((void **)&b.idx, &b.cap_idx, 3 * (fe->count ? fe->count : 1), sizeof *b.idx)) {
         rc = pf_error_set(err, PF_ENOMEM, path, 0, "out of memory");
         goto done;
     }

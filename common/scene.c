@@ -10,6 +10,7 @@
 #include <strings.h>
 
 #include "common/log.h"
+#include "common/reserve.h"
 
 pf_settings_t pf_settings_default(void)
 {
@@ -82,23 +83,9 @@ void pf_scene_destroy(pf_scene_t **self_p)
     *self_p = NULL;
 }
 
-/* Grows a dynamic array to hold one more element. */
-static int s_grow(void **arr, size_t *cap, size_t n, size_t elem)
-{
-    if (n < *cap)
-        return PF_OK;
-    size_t ncap = *cap ? *cap * 2 : 8;
-    void *p = realloc(*arr, ncap * elem);
-    if (!p)
-        return PF_ENOMEM;
-    *arr = p;
-    *cap = ncap;
-    return PF_OK;
-}
-
 int pf_scene_add_material(pf_scene_t *self, const pf_material_t *mat)
 {
-    if (s_grow((void **)&self->mats, &self->cap_mats, self->nmats, sizeof *mat))
+    if (pf_reserve((void **)&self->mats, &self->cap_mats, self->nmats + 1, sizeof *mat))
         return PF_ENOMEM;
     self->mats[self->nmats] = *mat;
     return (int)self->nmats++;
@@ -114,7 +101,7 @@ int pf_scene_find_material(const pf_scene_t *self, const char *name)
 
 int pf_scene_add_mesh(pf_scene_t *self, pf_mesh_t *mesh)
 {
-    if (s_grow((void **)&self->meshes, &self->cap_meshes, self->nmeshes, sizeof *mesh))
+    if (pf_reserve((void **)&self->meshes, &self->cap_meshes, self->nmeshes + 1, sizeof *mesh))
         return PF_ENOMEM;
     self->meshes[self->nmeshes++] = *mesh;
     memset(mesh, 0, sizeof *mesh);
@@ -123,7 +110,7 @@ int pf_scene_add_mesh(pf_scene_t *self, pf_mesh_t *mesh)
 
 int pf_scene_add_sphere(pf_scene_t *self, const pf_sphere_t *sphere)
 {
-    if (s_grow((void **)&self->spheres, &self->cap_spheres, self->nspheres, sizeof *sphere))
+    if (pf_reserve((void **)&self->spheres, &self->cap_spheres, self->nspheres + 1, sizeof *sphere))
         return PF_ENOMEM;
     self->spheres[self->nspheres++] = *sphere;
     return PF_OK;
@@ -131,7 +118,7 @@ int pf_scene_add_sphere(pf_scene_t *self, const pf_sphere_t *sphere)
 
 int pf_scene_add_light(pf_scene_t *self, const pf_light_t *light)
 {
-    if (s_grow((void **)&self->lights, &self->cap_lights, self->nlights, sizeof *light))
+    if (pf_reserve((void **)&self->lights, &self->cap_lights, self->nlights + 1, sizeof *light))
         return PF_ENOMEM;
     self->lights[self->nlights++] = *light;
     return PF_OK;
