@@ -58,6 +58,7 @@ typedef struct s_scan {
     int *out;
     size_t n, cap;
     int ok;
+    int nomem; /* ok was cleared by a failed allocation */
 } s_scan_t;
 
 static void s_scan_emit(s_scan_t *sc, int line)
@@ -69,6 +70,7 @@ static void s_scan_emit(s_scan_t *sc, int line)
         int *p = realloc(sc->out, ncap * sizeof *p);
         if (!p) {
             sc->ok = 0;
+            sc->nomem = 1;
             return;
         }
         sc->out = p;
@@ -167,6 +169,7 @@ typedef struct s_pairing {
     s_line_t *tab;
     size_t ntab, cap;
     int ok;
+    int nomem;
 } s_pairing_t;
 
 static int s_pair_take(s_pairing_t *p)
@@ -190,6 +193,7 @@ static void s_pair(s_pairing_t *p, const cJSON *node, int key_line)
         s_line_t *t = realloc(p->tab, ncap * sizeof *t);
         if (!t) {
             p->ok = 0;
+            p->nomem = 1;
             return;
         }
         p->tab = t;
@@ -216,8 +220,10 @@ static int s_line_cmp(const void *a, const void *b)
 /* Builds the node-to-line table sorted by node address. On any mismatch
  * (which would mean the scanner and cJSON disagree about the text) the table
  * is left empty: errors then name the file without a line rather than a wrong
- * line. */
-static void s_build_lines(const char *text, size_t len, const cJSON *root, s_line_t **tab_p, size_t *n_p)
+ * line. Running out of memory is not degraded that way but returned
+ * (PF_ENOMEM), since lines also name things (a quad's mesh name): a load
+ * either fails or gives the same scene. */
+static int s_build_lines(const char *text, size_t len, const cJSON *root, s_line_t **tab_p, size_t *n_p)
 {
     *tab_p = NULL;
     *n_p = 0;
@@ -231,11 +237,12 @@ static void s_build_lines(const char *text, size_t len, const cJSON *root, s_lin
     free(sc.out);
     if (!p.ok || p.next != p.nlines) {
         free(p.tab);
-        return;
+        return sc.nomem || p.nomem ? PF_ENOMEM : PF_OK;
     }
     qsort(p.tab, p.ntab, sizeof *p.tab, s_line_cmp);
     *tab_p = p.tab;
     *n_p = p.ntab;
+    return PF_OK;
 }
 
 /* ------------------------------------------------------------------------ */
@@ -1283,7 +1290,10 @@ int pf_scene_json_load(pf_scene_t *scene, const char *path, pf_error_t *err)
         memcpy(c.dir, path, n);
         c.dir[n] = '\0';
     }
-    s_build_lines(text, len, root, &c.lines, &c.nlines);
+    if (s_build_lines(text, len, root, &c.lines, &c.nlines) != PF_OK) {
+        rc = pf_error_set(err, PF_ENOMEM, path, 0, "out of memory");
+        goto done;
+    }
 
     static const char *const top[] = { "camera", "render", "materials", "objects", "lights", NULL };
     rc = s_check_object(&c, root, "the scene (top level)", top);
