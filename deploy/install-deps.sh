@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
 # Installs the Debian/Ubuntu packages photonfarm needs to build and run,
 # only those that are missing. Run as root (or with sudo available).
-# Usage: deploy/install-deps.sh [--test] [--check]
+# Usage: deploy/install-deps.sh [--test] [--fuzz] [--check]
 #   --test   also the tools the test suite uses (shellcheck, yamllint,
 #            systemd-analyze, ip/tc for the network-namespace cluster test, python3)
+#   --fuzz   also clang and its libFuzzer/sanitizer runtimes (deploy/fuzz.sh)
 #   --check  list what is missing, install nothing
 set -euo pipefail
 
@@ -12,8 +13,9 @@ check_only=0
 for arg in "$@"; do
   case "$arg" in
     --test) packages+=(python3 shellcheck yamllint iproute2 systemd) ;;
+    --fuzz) packages+=(clang libclang-rt-14-dev) ;;
     --check) check_only=1 ;;
-    *) echo "install-deps: unknown option $arg (usage: install-deps.sh [--test] [--check])" >&2; exit 2 ;;
+    *) echo "install-deps: unknown option $arg (usage: install-deps.sh [--test] [--fuzz] [--check])" >&2; exit 2 ;;
   esac
 done
 
