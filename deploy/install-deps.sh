@@ -1,10 +1,12 @@
 #!/usr/bin/env bash
 # Installs the Debian/Ubuntu packages photonfarm needs to build and run,
 # only those that are missing. Run as root (or with sudo available).
-# Usage: deploy/install-deps.sh [--test] [--fuzz] [--check]
+# Usage: deploy/install-deps.sh [--test] [--fuzz] [--bench] [--check]
 #   --test   also the tools the test suite uses (shellcheck, yamllint,
-#            systemd-analyze, ip/tc for the network-namespace cluster test, python3)
+#            systemd-analyze, ip/tc for the network-namespace cluster test, python3,
+#            gnuplot for the bench_smoke test's plot)
 #   --fuzz   also clang and its libFuzzer/sanitizer runtimes (deploy/fuzz.sh)
+#   --bench  also what bench/bench.py needs (python3, gnuplot for the plots)
 #   --check  list what is missing, install nothing
 set -euo pipefail
 
@@ -12,10 +14,11 @@ packages=(cmake make gcc pkg-config libzmq3-dev libpng-dev libembree-dev libcjso
 check_only=0
 for arg in "$@"; do
   case "$arg" in
-    --test) packages+=(python3 shellcheck yamllint iproute2 systemd) ;;
+    --test) packages+=(python3 shellcheck yamllint iproute2 systemd gnuplot-nox) ;;
     --fuzz) packages+=(clang libclang-rt-14-dev) ;;
+    --bench) packages+=(python3 gnuplot-nox) ;;
     --check) check_only=1 ;;
-    *) echo "install-deps: unknown option $arg (usage: install-deps.sh [--test] [--fuzz] [--check])" >&2; exit 2 ;;
+    *) echo "install-deps: unknown option $arg (usage: install-deps.sh [--test] [--fuzz] [--bench] [--check])" >&2; exit 2 ;;
   esac
 done
 
