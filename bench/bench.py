@@ -92,11 +92,12 @@ STUDIES = ['photons', 'triangles', 'resolution', 'threads']
 SWEEP_COLS = ['scene', 'family', 'value', 'size', 'spp', 'gather', 'photons', 'caustic', 'workers', 'threads',
               'wall_s', 'photon_s', 'render_s', 'peak_rss_mb', 'relmse', 'rmse', 'lum_ratio', 'git', 'date',
               'time_limit', 'quality', 'cpu_s', 'load_s', 'triangles', 'global_stored', 'caustic_stored',
-              'reference', 'status', 'note', 'machine']
+              'reference', 'status', 'note', 'machine', 'load_avg']
 SCALING_COLS = ['study', 'value', 'scene', 'size', 'spp', 'gather', 'photons', 'caustic', 'workers', 'threads',
                 'triangles', 'wall_s', 'load_s', 'accel_other_s', 'trace_s', 'kdtree_s', 'irradiance_s',
                 'photon_s', 'render_s', 'peak_rss_mb', 'global_stored', 'caustic_stored', 'bytes_per_photon',
-                'relmse', 'rmse', 'lum_ratio', 'git', 'date', 'cpu_s', 'reference', 'status', 'note', 'machine']
+                'relmse', 'rmse', 'lum_ratio', 'git', 'date', 'cpu_s', 'reference', 'status', 'note', 'machine',
+                'load_avg']
 
 MARK_BEGIN = '<!-- BEGIN GENERATED %s: written by bench/bench.py --docs; edits here are overwritten -->'
 MARK_END = '<!-- END GENERATED %s -->'
@@ -339,7 +340,6 @@ class Runner:
         self.machine = machine
         self.cache = {}
         self.failures = 0
-        self.count = 0
         os.makedirs(args.work, exist_ok=True)
 
     @staticmethod
@@ -356,7 +356,6 @@ class Runner:
     def run(self, scene_name, scene_path, pt, label, reference=True):
         """Renders one point; returns a row dict (strings and numbers)."""
         a = self.args
-        self.count += 1
         tag = re.sub(r'[^A-Za-z0-9_.=-]+', '_', '%s-%s' % (scene_name, label))
         image = os.path.join(a.work, tag + '.png')
         pfm = os.path.join(a.work, tag + '.pfm')
@@ -381,6 +380,9 @@ class Runner:
             log('  %-34s same command as %s' % (label, prev_label))
             return row
 
+        # The machine's one-minute load just before the render: on a shared
+        # machine it says how far to trust the time.
+        row['load_avg'] = '%.2f' % os.getloadavg()[0] if hasattr(os, 'getloadavg') else ''
         r = run_process(cmd, logp, a.timeout)
         try:
             with open(logp, 'rb') as fp:
@@ -602,24 +604,33 @@ def run_scaling(args, runner, mode):
             row = runner.run(scene, path, pt, '%s=%s' % (study, value), reference=ref)
             row.update({'study': study, 'value': value, 'scene': scene})
             rows.append(row)
-        # Bytes per photon: the growth of peak RSS over the smallest run,
-        # divided by the growth in stored photons (global + caustic +
-        # irradiance points are all photon records). Rough: it includes the
-        # allocator's slack and the arrays' growth by doubling.
-        if study == 'photons':
-            ok = [r for r in rows if r.get('study') == 'photons' and r.get('status') == 'ok'
-                  and r.get('global_stored') not in (None, '')]
-            if len(ok) >= 2:
-                r0 = ok[0]
-                for r in ok[1:]:
-                    dn = _stored(r) - _stored(r0)
-                    if dn > 0:
-                        r['bytes_per_photon'] = (float(r['peak_rss_mb']) - float(r0['peak_rss_mb'])) * 1048576.0 / dn
+    set_bytes_per_photon(rows)
     return rows
 
 
 def _stored(r):
     return float(r.get('global_stored') or 0) + float(r.get('caustic_stored') or 0)
+
+
+def set_bytes_per_photon(rows):
+    """Bytes per photon for the photons study: the growth of peak RSS over
+    the smallest run, divided by the growth in stored photons. Rough: it
+    includes the allocator's slack, arrays grown by doubling, the kd-tree's
+    and the irradiance records. Left empty while the growth is under 16 MB,
+    where the program's own size and page granularity swamp it."""
+    ok = [r for r in rows if r.get('study') == 'photons' and r.get('status') == 'ok'
+          and num(r.get('global_stored')) is not None and num(r.get('peak_rss_mb')) is not None]
+    ok.sort(key=_stored)
+    for r in ok:
+        r['bytes_per_photon'] = ''
+    if len(ok) < 2:
+        return
+    r0 = ok[0]
+    for r in ok[1:]:
+        dn = _stored(r) - _stored(r0)
+        dm = num(r['peak_rss_mb']) - num(r0['peak_rss_mb'])
+        if dn > 0 and dm >= 16:
+            r['bytes_per_photon'] = dm * 1048576.0 / dn
 
 
 # ------------------------------------------------------------- CSV files
@@ -674,6 +685,21 @@ def fmt_num(v, digits=3):
     if abs(f) >= 10 ** digits:
         return '%.0f' % f
     return '%.*g' % (digits, f)
+
+
+def fmt_time(v):
+    """Seconds with two decimals below 10 s, one below 100 s, none above."""
+    f = num(v)
+    if f is None or not math.isfinite(f):
+        return fmt_num(v)
+    return '%.2f' % f if f < 10 else '%.1f' % f if f < 100 else '%.0f' % f
+
+
+def fmt_mb(v):
+    f = num(v)
+    if f is None or not math.isfinite(f):
+        return fmt_num(v)
+    return '%.1f' % f if f < 100 else '%.0f' % f
 
 
 def fmt_count(v):
@@ -865,11 +891,18 @@ def header_lines(rows, mode, command):
     dates = sorted(r['date'] for r in rows if r.get('date'))
     gits = sorted({r['git'] for r in rows if r.get('git')})
     machines = sorted({r['machine'] for r in rows if r.get('machine')})
+    loads = sorted(num(r.get('load_avg')) for r in rows if num(r.get('load_avg')) is not None)
+    m = re.match(r'([0-9]+) cores', machines[0] if machines else '')
+    cores = int(m.group(1)) if m else (os.cpu_count() or 1)
     out = ['- machine: %s' % ('; '.join(machines) or 'unknown'),
            '- measured: %s%s, photonfarm built from %s' % (dates[0][:16].replace('T', ' ') if dates else '?',
                                                            (' to ' + dates[-1][:16].replace('T', ' ')) if dates
                                                            and dates[-1][:16] != dates[0][:16] else '',
                                                            ', '.join(gits) or '?'),
+           '- load average (1 min) before the renders: %s' % (
+               ('%.2f to %.2f' % (loads[0], loads[-1]) if loads else 'not recorded') +
+               ('; **the machine was busy: times are pessimistic**' if loads and
+                loads[len(loads) // 2] > 0.5 * cores else '')),
            '- command: `%s`%s' % (command, ' (**quick run**: small images, few points; for development, not '
                                   'the published figures)' if mode == 'quick' else '')]
     return out
@@ -945,8 +978,8 @@ def sweep_markdown(rows, mode, image_rel, command):
             value = fmt_count(r['value']) if r['family'] in ('photons', 'caustic') else r['value']
             trows.append([r['family'], value, r.get('size', ''), r.get('spp', ''), r.get('gather', ''),
                           fmt_count(r.get('photons')), fmt_count(r.get('caustic')), wt,
-                          fmt_num(r.get('wall_s')), fmt_num(r.get('photon_s')), fmt_num(r.get('render_s')),
-                          fmt_num(r.get('peak_rss_mb'))] + md_status(r))
+                          fmt_time(r.get('wall_s')), fmt_time(r.get('photon_s')), fmt_time(r.get('render_s')),
+                          fmt_mb(r.get('peak_rss_mb'))] + md_status(r))
         out.append(md_table(['family', 'value', 'size', 'spp', 'gather', 'photons', 'caustic', 'workers×threads',
                              'wall s', 'photons s', 'render s', 'peak RSS MB', 'relMSE', 'RMSE', 'lum. ratio'],
                             trows))
@@ -970,7 +1003,7 @@ def scaling_markdown(rows, mode, image_rel, command):
         out.append('### %s' % titles[study])
         out.append('')
         if not srows:
-            out.append('Not measured yet: `python3 bench/bench.py --scaling --studies %s`.' % study)
+            out.append('Not measured yet: `python3 bench/bench.py --scaling --studies %s --docs`.' % study)
             out.append('')
             continue
         if image_rel.get(study):
@@ -985,9 +1018,9 @@ def scaling_markdown(rows, mode, image_rel, command):
             out.append(md_table(['photons emitted', 'stored', 'trace s', 'kd-trees s', 'irradiance s',
                                  'photon pass s', 'wall s', 'peak RSS MB', 'bytes/photon (rough)'],
                                 [[fmt_count(r.get('photons')), fmt_int(r.get('global_stored')),
-                                  fmt_num(r.get('trace_s')), fmt_num(r.get('kdtree_s')),
-                                  fmt_num(r.get('irradiance_s')), fmt_num(r.get('photon_s')),
-                                  fmt_num(r.get('wall_s')), fmt_num(r.get('peak_rss_mb')),
+                                  fmt_time(r.get('trace_s')), fmt_time(r.get('kdtree_s')),
+                                  fmt_time(r.get('irradiance_s')), fmt_time(r.get('photon_s')),
+                                  fmt_time(r.get('wall_s')), fmt_mb(r.get('peak_rss_mb')),
                                   fmt_num(r.get('bytes_per_photon'))] if r.get('status') == 'ok' else
                                  [fmt_count(r.get('photons')), r.get('status', '')] + [''] * 7 for r in srows]))
         elif study == 'triangles':
@@ -998,10 +1031,10 @@ def scaling_markdown(rows, mode, image_rel, command):
             out.append('')
             out.append(md_table(['model', 'triangles', 'load s', 'accel + other s', 'photon pass s', 'render s',
                                  'wall s', 'peak RSS MB'],
-                                [[r['value'], fmt_int(r.get('triangles')), fmt_num(r.get('load_s')),
-                                  fmt_num(r.get('accel_other_s')), fmt_num(r.get('photon_s')),
-                                  fmt_num(r.get('render_s')), fmt_num(r.get('wall_s')),
-                                  fmt_num(r.get('peak_rss_mb'))] if r.get('status') == 'ok' else
+                                [[r['value'], fmt_int(r.get('triangles')), fmt_time(r.get('load_s')),
+                                  fmt_time(r.get('accel_other_s')), fmt_time(r.get('photon_s')),
+                                  fmt_time(r.get('render_s')), fmt_time(r.get('wall_s')),
+                                  fmt_mb(r.get('peak_rss_mb'))] if r.get('status') == 'ok' else
                                  [r['value'], r.get('status', '')] + [''] * 6 for r in srows]))
         elif study == 'resolution':
             s0 = srows[0]
@@ -1017,9 +1050,9 @@ def scaling_markdown(rows, mode, image_rel, command):
                     continue
                 px = (num(r['size'].split('x')[0]) or 0) ** 2
                 per = num(r.get('render_s'))
-                trows.append([r.get('size', ''), fmt_num(r.get('photon_s')), fmt_num(r.get('render_s')),
-                              fmt_num(per / px * 1e6) if per and px else '', fmt_num(r.get('wall_s')),
-                              fmt_num(r.get('peak_rss_mb')), fmt_num(r.get('relmse'))])
+                trows.append([r.get('size', ''), fmt_time(r.get('photon_s')), fmt_time(r.get('render_s')),
+                              fmt_num(per / px * 1e6) if per and px else '', fmt_time(r.get('wall_s')),
+                              fmt_mb(r.get('peak_rss_mb')), fmt_num(r.get('relmse'))])
             out.append(md_table(['size', 'photon pass s', 'render s', 'render s per Mpixel', 'wall s',
                                  'peak RSS MB', 'relMSE'], trows))
         else:
@@ -1039,8 +1072,8 @@ def scaling_markdown(rows, mode, image_rel, command):
                     num(t1.get('render_s')) else None
                 sp_p = num(t1.get('photon_s')) / num(r['photon_s']) if num(r.get('photon_s')) and \
                     num(t1.get('photon_s')) else None
-                trows.append([r.get('threads', ''), fmt_num(r.get('photon_s')), fmt_num(r.get('render_s')),
-                              fmt_num(r.get('wall_s')), fmt_num(sp_p), fmt_num(sp_r), fmt_num(r.get('peak_rss_mb'))])
+                trows.append([r.get('threads', ''), fmt_time(r.get('photon_s')), fmt_time(r.get('render_s')),
+                              fmt_time(r.get('wall_s')), fmt_num(sp_p), fmt_num(sp_r), fmt_mb(r.get('peak_rss_mb'))])
             out.append(md_table(['threads', 'photon pass s', 'render s', 'wall s', 'photon pass speed-up',
                                  'render speed-up', 'peak RSS MB'], trows))
         notes = ['- %s: %s' % (r['value'], r['note']) for r in srows if r.get('note')]
@@ -1111,6 +1144,7 @@ def report(args, mode, sweep_rows, scaling_rows, command):
                 fp.write('# photonfarm: run time against error\n\n' + md)
             written.append(p)
     if scaling_rows is not None:
+        set_bytes_per_photon(scaling_rows)
         rel = {}
         for study in STUDIES:
             png = os.path.join(img_dir, 'bench-scaling-%s%s.png' % (study, suffix))
