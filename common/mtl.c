@@ -370,8 +370,12 @@ int pf_mtl_load(pf_scene_t *scene, const char *path, pf_error_t *err)
         int kwlen = s_token_len(p);
         rc = s_statement(&c, &cur, &have, p, kwlen, p + kwlen);
     }
-    if (rc == PF_OK && ferror(f))
-        rc = pf_error_set(err, PF_EIO, path, c.line, "read error");
+    /* getline also returns -1 when it cannot grow its buffer (a line too
+     * long for memory, e.g. a device read as a model): only the end of the
+     * file ends the file, anything else is an error, not a truncation. */
+    if (rc == PF_OK && (ferror(f) || !feof(f)))
+        rc = pf_error_set(err, errno == ENOMEM ? PF_ENOMEM : PF_EIO, path, c.line + 1, "read error: %s",
+                          errno == ENOMEM ? "a line too long for memory" : strerror(errno));
     if (rc == PF_OK && have)
         rc = s_finish(&c, &cur);
     if (rc == PF_OK)

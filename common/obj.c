@@ -593,8 +593,12 @@ int pf_obj_load(pf_scene_t *scene, const char *path, const pf_xform_t *xf, int m
         int kwlen = s_token_len(p);
         rc = s_statement(o, p, kwlen, p + kwlen);
     }
-    if (rc == PF_OK && ferror(f))
-        rc = pf_error_set(err, PF_EIO, path, o->line, "read error");
+    /* getline also returns -1 when it cannot grow its buffer (a line too
+     * long for memory, e.g. a device read as a model): only the end of the
+     * file ends the file, anything else is an error, not a truncation. */
+    if (rc == PF_OK && (ferror(f) || !feof(f)))
+        rc = pf_error_set(err, errno == ENOMEM ? PF_ENOMEM : PF_EIO, path, o->line + 1, "read error: %s",
+                          errno == ENOMEM ? "a line too long for memory" : strerror(errno));
     if (rc == PF_OK)
         rc = s_flush(o);
     if (rc == PF_OK)
