@@ -12,7 +12,9 @@
  *
  * Oracles for accepted maps: k-nearest, radius and normal-filtered queries
  * (what the worker's estimates do) stay within the arrays and return at most
- * what was asked, and the maps write and read back.
+ * what was asked; the k nearest equal a brute-force scan's, so the layout
+ * check lets through no tree that answers wrongly; and the maps write and
+ * read back.
  *
  * One thread; the regression driver and libFuzzer call it in a loop. */
 #include <math.h>
@@ -39,6 +41,34 @@ static uint64_t s_u64_at(const uint8_t *p)
     return v;
 }
 
+/* The kd-tree's squared distance (float differences, summed in double,
+ * rounded once; see kdtree.c), so that the brute force agrees to the bit. */
+static float s_dist2(const float q[3], const float p[3])
+{
+    double dx = q[0] - p[0], dy = q[1] - p[1], dz = q[2] - p[2];
+    return (float)(dx * dx + dy * dy + dz * dz);
+}
+
+/* The k nearest photons to q by (d2, index), by looking at every one. */
+static size_t s_brute_knn(const pf_photon_t *ph, size_t n, const float q[3], size_t k, pf_knn_t *out)
+{
+    size_t m = 0;
+    for (size_t i = 0; i < n; i++) {
+        pf_knn_t c = { (uint32_t)i, s_dist2(q, ph[i].pos) };
+        size_t j = m < k ? m++ : k;
+        if (j == k && !(c.d2 < out[k - 1].d2 || (c.d2 == out[k - 1].d2 && c.index < out[k - 1].index)))
+            continue;
+        if (j == k)
+            j = k - 1;
+        while (j > 0 && (c.d2 < out[j - 1].d2 || (c.d2 == out[j - 1].d2 && c.index < out[j - 1].index))) {
+            out[j] = out[j - 1];
+            j--;
+        }
+        out[j] = c;
+    }
+    return m;
+}
+
 /* Queries a tree the way the worker's estimates do, at its photons and at
  * points around them, and checks every answer against the tree's size. */
 static void s_query(const pf_kdtree_t *t)
@@ -60,6 +90,14 @@ static void s_query(const pf_kdtree_t *t)
             PF_FUZZ_REQUIRE(out[j].index < n, "knn index %u of %zu", out[j].index, n);
             PF_FUZZ_REQUIRE(j == 0 || out[j - 1].d2 <= out[j].d2, "knn results out of order");
         }
+        pf_knn_t brute[16];
+        float q[3] = { x.x, x.y, x.z };
+        size_t want = s_brute_knn(ph, n, q, k, brute);
+        PF_FUZZ_REQUIRE(got == want, "knn found %zu photons, a scan %zu", got, want);
+        for (size_t j = 0; j < got; j++)
+            PF_FUZZ_REQUIRE(out[j].index == brute[j].index && out[j].d2 == brute[j].d2,
+                            "knn result %zu of %zu is photon %u at d2 %g, a scan says photon %u at d2 %g", j, k,
+                            out[j].index, (double)out[j].d2, brute[j].index, (double)brute[j].d2);
         got = pf_kdtree_radius(t, x, 0.01f, out, 16);
         for (size_t j = 0; j < got && j < 16; j++)
             PF_FUZZ_REQUIRE(out[j].index < n, "radius index %u of %zu", out[j].index, n);
