@@ -53,11 +53,15 @@
 #define PF_KDTREE_SELECT_BUDGET 8
 #endif
 
+typedef struct s_grid s_grid;
+static void s_grid_free(s_grid *g);
+
 struct pf_kdtree {
     pf_photon_t *photons;
     uint8_t *axes;
     size_t n;
     pf_vec3 lo, hi;
+    s_grid *grid; /* pf_kdtree_index_nearest's grid, or NULL */
 };
 
 /* A photon as the build sees it: its coordinates already mapped to ordered
@@ -304,6 +308,7 @@ static pf_kdtree_t *s_make(pf_photon_t *ph, uint8_t *axes, size_t n)
     self->photons = ph;
     self->axes = axes;
     self->n = n;
+    self->grid = NULL;
     s_bounds(ph, n, &self->lo, &self->hi);
     return self;
 }
@@ -442,6 +447,7 @@ void pf_kdtree_destroy(pf_kdtree_t **self_p)
     if (!self_p || !*self_p)
         return;
     pf_kdtree_t *self = *self_p;
+    s_grid_free(self->grid);
     free(self->photons);
     free(self->axes);
     free(self);
@@ -589,11 +595,9 @@ sort:
 /* The k = 1 search without a heap, with the normal test applied to each
  * candidate that would beat the current best (the oct-normal decode is paid
  * only for those). Ties go to the lower tree index, as in pf_kdtree_knn. */
-int pf_kdtree_nearest_normal(const pf_kdtree_t *self, pf_vec3 x, pf_vec3 n, float min_cos, float max_r2,
-                             pf_knn_t *out)
+static int s_nearest_tree(const pf_kdtree_t *self, pf_vec3 x, pf_vec3 n, float min_cos, float max_r2,
+                          pf_knn_t *out)
 {
-    if (!self || self->n == 0 || s_hopeless(x, max_r2))
-        return 0;
     const pf_photon_t *ph = self->photons;
     const uint8_t *axes = self->axes;
     const float q[3] = { x.x, x.y, x.z };
@@ -642,6 +646,259 @@ end:
     if (found)
         *out = best;
     return found;
+}
+
+/* The nearest-point grid (pf_kdtree_index_nearest). A uniform grid of cubic
+ * cells of side h, hashed (open addressing, linear probing) from the cell's
+ * packed coordinates to its run of points; the points are copied in cell
+ * order, each with its decoded normal and its tree index, 32 bytes. A query
+ * scans the 2 x 2 x 2 cells around it, which hold every point closer than
+ * h / 2; only when the best agreeing point found there is not that close does
+ * it fall back to the tree, so the answer is always the tree's answer. */
+#define S_GRID_BITS 21
+#define S_GRID_MAX ((int64_t)1 << S_GRID_BITS)
+#define S_GRID_EMPTY UINT64_MAX
+
+typedef struct s_gpoint {
+    float pos[3];
+    float nrm[3];
+    uint32_t index;
+    uint32_t pad;
+} s_gpoint;
+
+typedef struct s_gcell {
+    uint64_t key;
+    uint32_t start, count;
+} s_gcell;
+
+struct s_grid {
+    double origin[3];
+    double inv_h;
+    float exact_d2; /* a best point closer than this is the exact answer */
+    s_gcell *cells;
+    uint64_t mask;  /* table size - 1 */
+    size_t ncells;
+    s_gpoint *pts;
+};
+
+static void s_grid_free(s_grid *g)
+{
+    if (!g)
+        return;
+    free(g->cells);
+    free(g->pts);
+    free(g);
+}
+
+static inline uint64_t s_grid_key(int64_t x, int64_t y, int64_t z)
+{
+    return ((uint64_t)x << (2 * S_GRID_BITS)) | ((uint64_t)y << S_GRID_BITS) | (uint64_t)z;
+}
+
+/* Every key bit must reach the low bits the mask keeps (a bare multiply
+ * would leave the x coordinate, in the top bits, out): MurmurHash3's
+ * finalizer. */
+static inline uint64_t s_grid_slot(uint64_t key, uint64_t mask)
+{
+    key ^= key >> 33;
+    key *= 0xff51afd7ed558ccdull;
+    key ^= key >> 33;
+    key *= 0xc4ceb9fe1a85ec53ull;
+    key ^= key >> 33;
+    return key & mask;
+}
+
+/* The cell coordinate of c on one axis, computed in double so that the
+ * rounding is far below the margin exact_d2 leaves. */
+static inline int64_t s_grid_coord(const s_grid *g, int axis, double c)
+{
+    return (int64_t)floor((c - g->origin[axis]) * g->inv_h);
+}
+
+/* Finds key's cell, or the empty slot where it belongs. */
+static s_gcell *s_grid_find(s_gcell *cells, uint64_t mask, uint64_t key)
+{
+    uint64_t i = s_grid_slot(key, mask);
+    while (cells[i].key != key && cells[i].key != S_GRID_EMPTY)
+        i = (i + 1) & mask;
+    return &cells[i];
+}
+
+static int s_grid_grow(s_grid *g)
+{
+    uint64_t size = 2 * (g->mask + 1), mask = size - 1;
+    s_gcell *cells = malloc(size * sizeof *cells);
+    if (!cells)
+        return PF_ENOMEM;
+    for (uint64_t i = 0; i < size; i++)
+        cells[i].key = S_GRID_EMPTY;
+    for (uint64_t i = 0; i <= g->mask; i++)
+        if (g->cells[i].key != S_GRID_EMPTY)
+            *s_grid_find(cells, mask, g->cells[i].key) = g->cells[i];
+    free(g->cells);
+    g->cells = cells;
+    g->mask = mask;
+    return PF_OK;
+}
+
+/* A high percentile (p in 0..1) of the distances from a sample of points to
+ * their nearest neighbour. */
+static double s_spacing_percentile(const pf_kdtree_t *self, double p)
+{
+    enum { SAMPLES = 1024 };
+    float d[SAMPLES];
+    size_t m = 0;
+    for (size_t s = 0; s < SAMPLES && s < self->n; s++) {
+        size_t i = s * self->n / (self->n < SAMPLES ? self->n : SAMPLES);
+        pf_knn_t nn[2];
+        if (pf_kdtree_knn(self, pf_photon_pos(&self->photons[i]), 2, INFINITY, nn) == 2 && nn[1].d2 > 0.0f)
+            d[m++] = nn[1].d2;
+    }
+    if (m == 0)
+        return 0.0;
+    /* a partial insertion sort would do; the sample is small */
+    for (size_t i = 1; i < m; i++)
+        for (size_t j = i; j > 0 && d[j - 1] > d[j]; j--) {
+            float t = d[j];
+            d[j] = d[j - 1];
+            d[j - 1] = t;
+        }
+    return sqrt((double)d[(size_t)(p * (double)(m - 1))]);
+}
+
+int pf_kdtree_index_nearest(pf_kdtree_t *self)
+{
+    if (!self || self->grid || self->n < 64)
+        return PF_OK; /* a small tree is fast enough */
+    /* The spacing of the sparse regions (photon density follows the light),
+     * so that queries there are settled by the grid too. */
+    double spacing = s_spacing_percentile(self, 0.9);
+    double ext = fmax(fmax(self->hi.x - self->lo.x, self->hi.y - self->lo.y), self->hi.z - self->lo.z);
+    if (!(spacing > 0.0) || !isfinite(ext))
+        return PF_OK; /* coincident points: the tree is as good */
+    /* Cells of three such spacings leave the nearest point within h / 2 for
+     * all but a few queries (0.5 % on cornell-spheres; the tree answers those,
+     * bounded by the best point the grid saw). */
+    double h = fmax(3.0 * spacing, ext / (double)(S_GRID_MAX - 8));
+    s_grid *g = calloc(1, sizeof *g);
+    if (!g)
+        return PF_ENOMEM;
+    /* Two cells of margin below the points, so that queries on the bounding
+     * box's faces (the walls of a room) still land inside the grid. */
+    g->origin[0] = self->lo.x - 2.0 * h, g->origin[1] = self->lo.y - 2.0 * h, g->origin[2] = self->lo.z - 2.0 * h;
+    g->inv_h = 1.0 / h;
+    double half = 0.5 * h * (1.0 - 1e-3);
+    g->exact_d2 = (float)(half * half);
+    g->mask = 1023;
+    g->cells = malloc((g->mask + 1) * sizeof *g->cells);
+    g->pts = malloc(self->n * sizeof *g->pts);
+    if (!g->cells || !g->pts)
+        goto fail;
+    for (uint64_t i = 0; i <= g->mask; i++)
+        g->cells[i].key = S_GRID_EMPTY;
+    /* Count the points per cell. */
+    for (size_t i = 0; i < self->n; i++) {
+        const float *p = self->photons[i].pos;
+        if (!isfinite(p[0]) || !isfinite(p[1]) || !isfinite(p[2]))
+            continue; /* never found by the tree either */
+        uint64_t key = s_grid_key(s_grid_coord(g, 0, p[0]), s_grid_coord(g, 1, p[1]),
+                                  s_grid_coord(g, 2, p[2]));
+        s_gcell *c = s_grid_find(g->cells, g->mask, key);
+        if (c->key == S_GRID_EMPTY) {
+            if (2 * (g->ncells + 1) > g->mask + 1) {
+                if (s_grid_grow(g) != PF_OK)
+                    goto fail;
+                c = s_grid_find(g->cells, g->mask, key);
+            }
+            *c = (s_gcell){ key, 0, 0 };
+            g->ncells++;
+        }
+        c->count++;
+    }
+    /* Runs in table order; points in tree order within a run. */
+    uint32_t start = 0;
+    for (uint64_t i = 0; i <= g->mask; i++) {
+        if (g->cells[i].key == S_GRID_EMPTY)
+            continue;
+        g->cells[i].start = start;
+        start += g->cells[i].count;
+        g->cells[i].count = 0;
+    }
+    for (size_t i = 0; i < self->n; i++) {
+        const pf_photon_t *ph = &self->photons[i];
+        if (!isfinite(ph->pos[0]) || !isfinite(ph->pos[1]) || !isfinite(ph->pos[2]))
+            continue;
+        uint64_t key = s_grid_key(s_grid_coord(g, 0, ph->pos[0]), s_grid_coord(g, 1, ph->pos[1]),
+                                  s_grid_coord(g, 2, ph->pos[2]));
+        s_gcell *c = s_grid_find(g->cells, g->mask, key);
+        pf_vec3 nrm = pf_oct_decode(ph->normal);
+        g->pts[c->start + c->count++] = (s_gpoint){ { ph->pos[0], ph->pos[1], ph->pos[2] },
+                                                    { nrm.x, nrm.y, nrm.z },
+                                                    (uint32_t)i,
+                                                    0 };
+    }
+    self->grid = g;
+    return PF_OK;
+fail:
+    s_grid_free(g);
+    return PF_ENOMEM;
+}
+
+/* The grid's part of pf_kdtree_nearest_normal: 1 with the exact answer in
+ * *out (or none, *found = 0), 0 when the tree must decide; then *max_r2 is
+ * lowered to the best squared distance seen, which bounds the tree's search. */
+static int s_nearest_grid(const s_grid *g, pf_vec3 x, pf_vec3 n, float min_cos, float *max_r2, pf_knn_t *out,
+                          int *found)
+{
+    const double c[3] = { x.x, x.y, x.z };
+    int64_t b[3];
+    for (int a = 0; a < 3; a++) {
+        double f = (c[a] - g->origin[a]) * g->inv_h - 0.5;
+        if (!(f >= 0.0 && f < (double)(S_GRID_MAX - 2)))
+            return 0;
+        b[a] = (int64_t)f;
+    }
+    const float q[3] = { x.x, x.y, x.z };
+    pf_knn_t best = { UINT32_MAX, *max_r2 };
+    int got = 0;
+    for (int d = 0; d < 8; d++) {
+        uint64_t key = s_grid_key(b[0] + (d & 1), b[1] + ((d >> 1) & 1), b[2] + (d >> 2));
+        uint64_t i = s_grid_slot(key, g->mask);
+        while (g->cells[i].key != key && g->cells[i].key != S_GRID_EMPTY)
+            i = (i + 1) & g->mask;
+        if (g->cells[i].key == S_GRID_EMPTY)
+            continue;
+        const s_gpoint *p = &g->pts[g->cells[i].start], *end = p + g->cells[i].count;
+        for (; p < end; p++) {
+            float d2 = s_dist2(q, p->pos);
+            if ((d2 < best.d2 || (d2 == best.d2 && p->index < best.index)) &&
+                pf_dot(pf_v3(p->nrm[0], p->nrm[1], p->nrm[2]), n) >= min_cos) {
+                best = (pf_knn_t){ p->index, d2 };
+                got = 1;
+            }
+        }
+    }
+    if (got ? best.d2 < g->exact_d2 : *max_r2 < g->exact_d2) {
+        *found = got;
+        if (got)
+            *out = best;
+        return 1;
+    }
+    /* The tree accepts a point at exactly *max_r2 with any index, so the best
+     * seen here (or a tie with a lower index) is still found. */
+    *max_r2 = best.d2;
+    return 0;
+}
+
+int pf_kdtree_nearest_normal(const pf_kdtree_t *self, pf_vec3 x, pf_vec3 n, float min_cos, float max_r2,
+                             pf_knn_t *out)
+{
+    if (!self || self->n == 0 || s_hopeless(x, max_r2))
+        return 0;
+    int found;
+    if (self->grid && s_nearest_grid(self->grid, x, n, min_cos, &max_r2, out, &found))
+        return found;
+    return s_nearest_tree(self, x, n, min_cos, max_r2, out);
 }
 
 size_t pf_kdtree_radius(const pf_kdtree_t *self, pf_vec3 x, float r2, pf_knn_t *out, size_t cap)

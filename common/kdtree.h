@@ -60,6 +60,13 @@ size_t pf_kdtree_knn(const pf_kdtree_t *self, pf_vec3 x, size_t k, float max_r2,
 int pf_kdtree_nearest_normal(const pf_kdtree_t *self, pf_vec3 x, pf_vec3 n, float min_cos, float max_r2,
                              pf_knn_t *out);
 
+/* Builds a grid beside the tree that answers pf_kdtree_nearest_normal
+ * several times faster for the same result (the tree still decides the rare
+ * queries the grid cannot settle). Costs 32 bytes per photon plus the cell
+ * table; call once, before the tree is shared between threads. 0, or
+ * PF_ENOMEM with the tree unchanged. */
+int pf_kdtree_index_nearest(pf_kdtree_t *self);
+
 /* All photons with squared distance <= r2 from x: writes up to cap of them to
  * out (in no particular order) and returns how many there are in total. */
 size_t pf_kdtree_radius(const pf_kdtree_t *self, pf_vec3 x, float r2, pf_knn_t *out, size_t cap);

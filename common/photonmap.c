@@ -8,6 +8,7 @@
 
 #include "common/bsdf.h"
 #include "common/photon.h"
+#include "common/status.h"
 
 void pf_photon_maps_free(pf_photon_maps_t *maps)
 {
@@ -17,6 +18,11 @@ void pf_photon_maps_free(pf_photon_maps_t *maps)
     pf_kdtree_destroy(&maps->caustic);
     pf_kdtree_destroy(&maps->irradiance);
     memset(maps, 0, sizeof *maps);
+}
+
+int pf_photon_maps_index(pf_photon_maps_t *maps)
+{
+    return maps->irradiance ? pf_kdtree_index_nearest(maps->irradiance) : PF_OK;
 }
 
 /* Gathers up to k photons; returns how many lie inside the disc and its

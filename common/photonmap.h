@@ -19,6 +19,12 @@ typedef struct pf_photon_maps {
     float irradiance_r2;      /* max squared distance to an irradiance point */
 } pf_photon_maps_t;
 
+/* Readies the maps for rendering: builds the irradiance tree's nearest-point
+ * grid (pf_kdtree_index_nearest), which makes the final gather's lookups
+ * several times faster without changing a result. 0 or PF_ENOMEM (the maps
+ * stay usable, only slower). */
+int pf_photon_maps_index(pf_photon_maps_t *maps);
+
 /* Frees the trees; NULL-safe; leaves the struct zeroed. */
 void pf_photon_maps_free(pf_photon_maps_t *maps);
 

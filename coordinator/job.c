@@ -48,6 +48,8 @@ int pf_job_render_local(const pf_scene_t *scene, const pf_settings_t *settings, 
                 (unsigned long long)summary->photons.caustic_stored,
                 (unsigned long long)summary->photons.irradiance_points, summary->photons.trace_s,
                 summary->photons.build_s, summary->photons.irradiance_s);
+        if (pf_photon_maps_index(&maps) != PF_OK)
+            pf_warn("out of memory for the irradiance lookup grid: rendering goes on, slower");
         pf_render_ctx_t ctx;
         pf_render_ctx_init(&ctx, scene, accel, lights, &maps, &s);
         ctx.terms = terms;

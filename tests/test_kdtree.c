@@ -594,6 +594,7 @@ static void s_test_from_layout(void)
 #define pf_kdtree_knn s_fallback_knn
 #define pf_kdtree_radius s_fallback_radius
 #define pf_kdtree_nearest_normal s_fallback_nearest_normal
+#define pf_kdtree_index_nearest s_fallback_index_nearest
 #include "common/kdtree.c"
 #undef pf_kdtree_build
 #undef pf_kdtree_from_layout
@@ -696,8 +697,10 @@ static void s_test_threads(void)
 
 /* pf_kdtree_nearest_normal against a scan: photons get normals among the
  * six axes (and a few random ones); the answer must be the (d2, index)
- * minimum over photons within max_r2 whose normal agrees. */
-static void s_test_nearest_normal(int kind, size_t n, int nq)
+ * minimum over photons within max_r2 whose normal agrees. With indexed, the
+ * tree first gets its nearest-point grid (pf_kdtree_index_nearest), which
+ * answers most queries near the photons itself and must agree exactly. */
+static void s_test_nearest_normal(int kind, size_t n, int nq, int indexed)
 {
     static const pf_vec3 axes6[6] = { { 1, 0, 0 }, { -1, 0, 0 }, { 0, 1, 0 }, { 0, -1, 0 }, { 0, 0, 1 }, { 0, 0, -1 } };
     pf_photon_t *input = s_make_set(kind, n);
@@ -705,12 +708,17 @@ static void s_test_nearest_normal(int kind, size_t n, int nq)
         input[i].normal = pf_oct_encode(i % 7 == 6 ? pf_norm(pf_v3(s_uniform() - 0.5f, s_uniform() - 0.5f, 0.3f))
                                                    : axes6[s_next() % 6]);
     pf_kdtree_t *t = s_build_copy(input, n);
+    if (indexed)
+        CHECK(pf_kdtree_index_nearest(t) == PF_OK, "index_nearest failed");
     const pf_photon_t *ph = pf_kdtree_photons(t);
     int ok = 1;
     for (int q = 0; q < nq; q++) {
         pf_vec3 x = pf_v3(s_uniform() * 2.4f - 1.2f, s_uniform() * 2.4f - 1.2f, s_uniform() * 2.4f - 1.2f);
         if (n && q % 3 == 0)
             x = pf_photon_pos(&ph[s_next() % n]);
+        if (n && q % 3 == 1) /* near a photon: where the grid answers */
+            x = pf_add(pf_photon_pos(&ph[s_next() % n]),
+                       pf_scale(pf_v3(s_uniform() - 0.5f, s_uniform() - 0.5f, s_uniform() - 0.5f), 0.02f));
         pf_vec3 nn = axes6[s_next() % 6];
         float min_cos = q % 2 ? 0.7f : 0.99f;
         float r2 = q % 5 == 0 ? INFINITY : 0.3f * s_uniform();
@@ -735,7 +743,8 @@ static void s_test_nearest_normal(int kind, size_t n, int nq)
             break;
         }
     }
-    CHECK(ok, "%s n=%zu: nearest with normal filter differs from a scan", s_set_names[kind], n);
+    CHECK(ok, "%s n=%zu%s: nearest with normal filter differs from a scan", s_set_names[kind], n,
+          indexed ? " (indexed)" : "");
     pf_kdtree_destroy(&t);
     free(input);
 }
@@ -773,12 +782,18 @@ int main(void)
     s_test_fallback(SET_CLUSTERED, 3000);
     s_test_fallback(SET_GRID, 3000);
     s_test_fallback(SET_COINCIDENT, 1000);
-    for (size_t n = 0; n <= 64; n += 7)
-        s_test_nearest_normal(SET_UNIFORM, n, 200);
-    s_test_nearest_normal(SET_UNIFORM, 3000, 400);
-    s_test_nearest_normal(SET_CLUSTERED, 2000, 400);
-    s_test_nearest_normal(SET_COINCIDENT, 500, 100);
-    s_test_nearest_normal(SET_GRID, 2500, 300);
+    for (int indexed = 0; indexed <= 1; indexed++) {
+        for (size_t n = 0; n <= 70; n += 7)
+            s_test_nearest_normal(SET_UNIFORM, n, 200, indexed);
+        s_test_nearest_normal(SET_UNIFORM, 3000, 400, indexed);
+        s_test_nearest_normal(SET_UNIFORM, 20000, 2000, indexed);
+        s_test_nearest_normal(SET_CLUSTERED, 2000, 400, indexed);
+        s_test_nearest_normal(SET_COINCIDENT, 500, 100, indexed);
+        s_test_nearest_normal(SET_HALF_COINCIDENT, 2000, 400, indexed);
+        s_test_nearest_normal(SET_TINY, 1500, 300, indexed);
+        s_test_nearest_normal(SET_GRID, 2500, 300, indexed);
+        s_test_nearest_normal(SET_LINE, 1000, 300, indexed);
+    }
     s_test_edges();
     s_test_from_layout();
     s_test_threads();
