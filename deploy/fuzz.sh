@@ -132,6 +132,14 @@ wait
   for t in "${targets[@]}"; do cat "$build/stats/$t"; done
 } | tee "$build/summary.md"
 
+# A target that crashed could not remove its work folder (fuzz_util.h);
+# remove those whose process is gone.
+for d in /dev/shm/pf-fuzz-*-*; do
+  [ -d "$d" ] || continue
+  pid=${d##*-}
+  kill -0 "$pid" 2>/dev/null || rm -rf "$d"
+done
+
 bad=0
 for t in "${targets[@]}"; do
   bad=$((bad + $(cat "$build/stats/$t.found")))
