@@ -124,12 +124,28 @@ int pf_scene_add_light(pf_scene_t *self, const pf_light_t *light)
     return PF_OK;
 }
 
+/* The largest coordinate a scene may use. Every position can become a ray
+ * origin (hit points, lights, the camera), and Embree refuses rays whose
+ * origin lies beyond its FLT_LARGE, 1.844e18 (Debian's build aborts on an
+ * assertion). False for NaN too. */
+#define S_COORD_MAX 1e18f
+
+static int s_in_range(pf_vec3 v)
+{
+    return fabsf(v.x) <= S_COORD_MAX && fabsf(v.y) <= S_COORD_MAX && fabsf(v.z) <= S_COORD_MAX;
+}
+
 void pf_scene_bounds(const pf_scene_t *self, pf_vec3 *lo, pf_vec3 *hi)
 {
     pf_vec3 a = pf_v3s(FLT_MAX), b = pf_v3s(-FLT_MAX);
     for (size_t m = 0; m < self->nmeshes; m++) {
         const pf_mesh_t *mesh = &self->meshes[m];
         for (size_t i = 0; i < mesh->nverts; i++) {
+            /* Vertices finalize drops with their triangles (non-finite, out of
+             * range) would make the bounds, and the framing camera and
+             * search radii derived from them, infinite. */
+            if (!s_in_range(mesh->pos[i]))
+                continue;
             a = pf_vmin(a, mesh->pos[i]);
             b = pf_vmax(b, mesh->pos[i]);
         }
@@ -153,7 +169,9 @@ static int s_mat_finite(const pf_material_t *m)
            isfinite(m->ns) && isfinite(m->ior);
 }
 
-/* Removes zero-area and non-finite triangles from a mesh; returns how many. */
+/* Removes triangles that cannot be rendered: zero area, an area whose square
+ * overflows a float (edges beyond ~1e9; the light table and the hit normals
+ * need it), vertices non-finite or beyond S_COORD_MAX. Returns how many. */
 static size_t s_drop_degenerate(pf_mesh_t *mesh)
 {
     size_t kept = 0;
@@ -162,7 +180,7 @@ static size_t s_drop_degenerate(pf_mesh_t *mesh)
         pf_vec3 p0 = mesh->pos[v[0]], p1 = mesh->pos[v[1]], p2 = mesh->pos[v[2]];
         pf_vec3 n = pf_cross(pf_sub(p1, p0), pf_sub(p2, p0));
         float a2 = pf_len2(n);
-        if (!(a2 > 0.0f) || !isfinite(a2) || !pf_is_finite3(p0) || !pf_is_finite3(p1) || !pf_is_finite3(p2))
+        if (!(a2 > 0.0f) || !isfinite(a2) || !s_in_range(p0) || !s_in_range(p1) || !s_in_range(p2))
             continue;
         if (kept != t) {
             memmove(&mesh->idx[3 * kept], v, 3 * sizeof *v);
@@ -222,17 +240,29 @@ int pf_scene_finalize(pf_scene_t *self, pf_error_t *err)
         ntris += mesh->ntris;
     }
     if (dropped)
-        pf_warn("%s: skipped %zu degenerate triangle%s (zero area or non-finite vertices)", file, dropped,
-                dropped == 1 ? "" : "s");
+        pf_warn("%s: skipped %zu degenerate triangle%s (zero area, area too large for a float, or vertices "
+                "non-finite or beyond +-1e18)",
+                file, dropped, dropped == 1 ? "" : "s");
     for (size_t s = 0; s < self->nspheres; s++) {
         const pf_sphere_t *sp = &self->spheres[s];
         if (!pf_is_finite3(sp->center) || !(sp->radius > 0.0f) || !isfinite(sp->radius))
             return pf_error_set(err, PF_EPARSE, file, 0, "sphere %zu: centre must be finite and radius > 0", s);
+        if (!s_in_range(pf_add(pf_vabs(sp->center), pf_v3s(sp->radius))))
+            return pf_error_set(err, PF_ERANGE, file, 0, "sphere %zu reaches beyond +-1e18, the ray tracer's range",
+                                s);
         if (sp->mat >= self->nmats)
             return pf_error_set(err, PF_EPARSE, file, 0, "sphere %zu: material index out of range", s);
         if (!pf_is_black(self->mats[sp->mat].le))
             return pf_error_set(err, PF_EUNSUPPORTED, file, 0,
                                 "sphere %zu: emissive spheres are not supported; use an emissive mesh", s);
+    }
+    for (size_t l = 0; l < self->nlights; l++) {
+        const pf_light_t *li = &self->lights[l];
+        pf_vec3 I = li->intensity;
+        if (!s_in_range(li->pos) || !pf_is_finite3(I) || I.x < 0.0f || I.y < 0.0f || I.z < 0.0f ||
+            (li->type == PF_LIGHT_SPOT && (!pf_is_finite3(li->dir) || !(pf_len2(li->dir) > 0.0f))))
+            return pf_error_set(err, PF_ERANGE, file, 0,
+                                "light %zu: position must be finite and within +-1e18, intensity finite and >= 0", l);
     }
     int emitters = (int)self->nlights;
     for (size_t mi = 0; mi < self->nmeshes && !emitters; mi++)
@@ -246,12 +276,12 @@ int pf_scene_finalize(pf_scene_t *self, pf_error_t *err)
     if (!self->has_camera)
         s_frame_camera(self);
     const pf_camera_desc_t *c = &self->camera;
-    if (!pf_is_finite3(c->pos) || !pf_is_finite3(c->look_at) || !pf_is_finite3(c->up) || !(c->vfov_deg > 0.0f) ||
+    if (!s_in_range(c->pos) || !pf_is_finite3(c->look_at) || !pf_is_finite3(c->up) || !(c->vfov_deg > 0.0f) ||
         !(c->vfov_deg < 180.0f) || !(pf_len2(pf_sub(c->look_at, c->pos)) > 0.0f) ||
         !(pf_len2(pf_cross(pf_sub(c->look_at, c->pos), c->up)) > 0.0f))
         return pf_error_set(err, PF_EPARSE, file, 0,
-                            "bad camera: position and look-at must differ, up must not be parallel to the view, "
-                            "field of view in (0, 180)");
+                            "bad camera: position must be within +-1e18 and differ from look-at, up must not be "
+                            "parallel to the view, field of view in (0, 180)");
     return PF_OK;
 }
 

@@ -434,6 +434,21 @@ static int s_vec3(s_ctx_t *c, const cJSON *v, const char *key, const char *what,
     return rc;
 }
 
+/* Positions must lie within +-1e18: each can become a ray origin, and Embree
+ * refuses rays that start beyond 1.844e18 (see S_COORD_MAX in scene.c). */
+static int s_in_range(pf_vec3 v)
+{
+    return fabsf(v.x) <= 1e18f && fabsf(v.y) <= 1e18f && fabsf(v.z) <= 1e18f;
+}
+
+static int s_position(s_ctx_t *c, const cJSON *v, const char *key, const char *what, pf_vec3 *out)
+{
+    int rc = s_vec3(c, v, key, what, out);
+    if (rc == PF_OK && !s_in_range(*out))
+        rc = S_FAIL_AT(c, v, "'%s' in %s must lie within +-1e18, the ray tracer's range", key, what);
+    return rc;
+}
+
 /* An RGB colour: an array of 3 numbers, or one number meaning grey. Each
  * channel must lie in [lo, hi]. */
 static int s_rgb(s_ctx_t *c, const cJSON *v, const char *key, const char *what, float lo, float hi, pf_vec3 *out)
@@ -502,7 +517,7 @@ static int s_camera(s_ctx_t *c, const cJSON *cam)
     if (!rc)
         rc = s_require(c, cam, "position", what, &pos);
     if (!rc)
-        rc = s_vec3(c, pos, "position", what, &d.pos);
+        rc = s_position(c, pos, "position", what, &d.pos);
     if (!rc)
         rc = s_require(c, cam, "look_at", what, &at);
     if (!rc)
@@ -758,7 +773,9 @@ static int s_transform(s_ctx_t *c, const cJSON *t, pf_xform_t *out, const cJSON 
         }
     }
     float det = pf_xform_det(&x);
-    if (!(det != 0.0f) || !isfinite(det))
+    if (!isfinite(det))
+        return S_FAIL_AT(c, *lin_node, "the transform's scale is too large (its determinant overflows a float)");
+    if (!(det != 0.0f))
         return S_FAIL_AT(c, *lin_node, "the transform is singular (it would flatten the geometry)");
     *out = x;
     return PF_OK;
@@ -967,7 +984,7 @@ static int s_sphere(s_ctx_t *c, const cJSON *o)
     if (!rc)
         rc = s_require(c, o, "center", what, &vc);
     if (!rc)
-        rc = s_vec3(c, vc, "center", what, &sp.center);
+        rc = s_position(c, vc, "center", what, &sp.center);
     if (!rc)
         rc = s_require(c, o, "radius", what, &vr);
     if (!rc && !(rc = s_float(c, vr, "radius", what, &sp.radius)) && !(sp.radius > 0.0f))
@@ -999,6 +1016,8 @@ static int s_sphere(s_ctx_t *c, const cJSON *o)
         if (!pf_is_finite3(sp.center) || !isfinite(sp.radius))
             return S_FAIL_AT(c, o, "the transformed sphere is not finite");
     }
+    if (!s_in_range(pf_add(pf_vabs(sp.center), pf_v3s(sp.radius))))
+        return S_FAIL_AT(c, o, "the sphere reaches beyond +-1e18, the ray tracer's range");
     sp.mat = (uint32_t)mat;
     if (pf_scene_add_sphere(c->scene, &sp))
         return pf_error_set(c->err, PF_ENOMEM, c->path, 0, "out of memory");
@@ -1117,7 +1136,7 @@ static int s_light(s_ctx_t *c, const cJSON *o)
         if (!rc)
             rc = s_require(c, o, "position", what, &vp);
         if (!rc)
-            rc = s_vec3(c, vp, "position", what, &l.pos);
+            rc = s_position(c, vp, "position", what, &l.pos);
         if (!rc)
             rc = s_require(c, o, "intensity", what, &vi);
         if (!rc)
@@ -1132,7 +1151,7 @@ static int s_light(s_ctx_t *c, const cJSON *o)
         if (!rc)
             rc = s_require(c, o, "position", what, &vp);
         if (!rc)
-            rc = s_vec3(c, vp, "position", what, &l.pos);
+            rc = s_position(c, vp, "position", what, &l.pos);
         if (!rc)
             rc = s_require(c, o, "direction", what, &vd);
         if (!rc && !(rc = s_vec3(c, vd, "direction", what, &l.dir)) && !(pf_len2(l.dir) > 0.0f))
