@@ -65,10 +65,13 @@ pf_vec3 pf_pm_irradiance(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int k, fl
     return pf_v3((float)(s[0] * inv), (float)(s[1] * inv), (float)(s[2] * inv));
 }
 
-pf_vec3 pf_pm_irradiance_cone(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int k, float max_r2, pf_knn_t *scratch)
+pf_vec3 pf_pm_irradiance_cone(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int k, float max_r2, pf_knn_t *scratch,
+                              float *r2_out)
 {
-    float r2 = 0.0f;
+    float r2 = max_r2;
     size_t cnt = s_gather(map, x, k, max_r2, scratch, &r2);
+    if (r2_out)
+        *r2_out = r2;
     if (cnt == 0 || !(r2 > 0.0f))
         return pf_v3s(0.0f);
     const pf_photon_t *ph = pf_kdtree_photons(map);

@@ -42,8 +42,10 @@ void pf_photon_maps_free(pf_photon_maps_t *maps);
 pf_vec3 pf_pm_irradiance(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int k, float max_r2, pf_knn_t *scratch);
 
 /* The same with a cone filter (Jensen 2001, 7.2.2, k = 1): weight
- * 1 - d / r, normalized by 1 - 2 / 3 over the disc, which sharpens caustics. */
-pf_vec3 pf_pm_irradiance_cone(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int k, float max_r2, pf_knn_t *scratch);
+ * 1 - d / r, normalized by 1 - 2 / 3 over the disc, which sharpens caustics.
+ * The squared radius the estimate used goes to *r2_out unless NULL. */
+pf_vec3 pf_pm_irradiance_cone(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int k, float max_r2, pf_knn_t *scratch,
+                              float *r2_out);
 
 /* Reflected radiance towards wo at x for a DIFFUSE material with a Phong
  * lobe, from the photons' directions (Jensen's original estimate): sum of

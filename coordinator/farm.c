@@ -77,7 +77,9 @@ typedef struct s_tile {
 /* The photon pass, run in its own thread. */
 typedef struct s_photons {
     const pf_scene_t *scene;
-    pf_settings_t settings;
+    pf_settings_t settings; /* a time limit changes them here, before the job goes out */
+    pf_budget_t *budget;
+    unsigned terms;
     pf_accel_t *accel;
     pf_lights_t *lights;
     pf_photon_maps_t maps;
@@ -98,9 +100,19 @@ static void *s_photon_thread(void *arg)
     if (!p->accel || !p->lights) {
         p->rc = p->accel ? PF_ENOMEM : PF_EEMBREE;
     } else {
-        p->rc = pf_photon_pass(p->scene, p->accel, p->lights, &p->settings, &p->maps, &p->stats);
+        if (p->budget)
+            p->rc = pf_budget_plan_photons(p->budget, p->scene, p->accel, p->lights, &p->settings);
+        if (p->rc == PF_OK)
+            p->rc = pf_photon_pass(p->scene, p->accel, p->lights, &p->settings, &p->maps, &p->stats);
         if (p->rc)
             pf_error_set(&p->err, p->rc, NULL, 0, "photon pass failed: %s", pf_strerror(p->rc));
+    }
+    if (p->rc == PF_OK && p->budget) {
+        /* The probe renders here with the coordinator's cores, as the workers will. */
+        pf_photon_maps_index(&p->maps);
+        pf_budget_plan_spp(p->budget, p->scene, p->accel, p->lights, &p->maps, p->terms, p->settings.threads,
+                           &p->settings);
+        pf_budget_log(p->budget, &p->settings);
     }
     if (p->rc == PF_OK)
         p->rc = pf_sceneblob_write(p->scene, &p->scene_blob);
@@ -650,6 +662,8 @@ int pf_farm_render(const pf_scene_t *scene, const pf_settings_t *settings, unsig
     /* The photon pass runs beside the event loop. */
     f.ph.scene = scene;
     f.ph.settings = s;
+    f.ph.budget = opts->budget;
+    f.ph.terms = terms;
     if (pthread_create(&phtid, NULL, s_photon_thread, &f.ph) != 0) {
         rc = pf_error_set(err, PF_ENOMEM, NULL, 0, "cannot start the photon pass thread");
         goto done;
@@ -681,6 +695,7 @@ int pf_farm_render(const pf_scene_t *scene, const pf_settings_t *settings, unsig
                     (unsigned long long)f.ph.stats.irradiance_points, f.ph.scene_blob.len, f.ph.maps_blob.len,
                     (double)f.ph.maps_blob.len /
                         (double)(f.ph.stats.global_stored + f.ph.stats.caustic_stored + f.ph.stats.irradiance_points + 1));
+            s = f.ph.settings; /* as a time limit planned them */
             f.jobmsg = (pf_msg_job_t){ f.ph.scene_hash, f.ph.scene_blob.len, f.ph.maps_hash, f.ph.maps_blob.len,
                                        s, terms, (uint32_t)ts };
             f.job_ready = 1;

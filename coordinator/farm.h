@@ -11,6 +11,7 @@
 
 #include "common/image.h"
 #include "common/scene.h"
+#include "coordinator/budget.h"
 #include "coordinator/photon_trace.h"
 
 typedef struct pf_farm_opts {
@@ -28,6 +29,7 @@ typedef struct pf_farm_opts {
     const char *curve_secret; /* coordinator key file (public + secret), NULL: no CURVE */
     const char *curve_allow;  /* file of allowed worker public keys (required with curve_secret) */
     int show_progress;
+    pf_budget_t *budget;      /* a time limit: photons and spp are planned on the coordinator (NULL: none) */
 } pf_farm_opts_t;
 
 void pf_farm_opts_default(pf_farm_opts_t *o);

@@ -15,6 +15,12 @@
 int pf_job_render_local(const pf_scene_t *scene, const pf_settings_t *settings, unsigned terms, int show_progress,
                         pf_image_t *img, pf_job_summary_t *summary, pf_error_t *err)
 {
+    return pf_job_render(scene, settings, terms, show_progress, NULL, img, summary, err);
+}
+
+int pf_job_render(const pf_scene_t *scene, const pf_settings_t *settings, unsigned terms, int show_progress,
+                  pf_budget_t *budget, pf_image_t *img, pf_job_summary_t *summary, pf_error_t *err)
+{
     memset(summary, 0, sizeof *summary);
     double t0 = pf_now();
     int threads = settings->threads > 0 ? settings->threads : omp_get_num_procs();
@@ -37,9 +43,12 @@ int pf_job_render_local(const pf_scene_t *scene, const pf_settings_t *settings, 
     summary->accel_s = t1 - t0;
 
     pf_photon_maps_t maps;
+    memset(&maps, 0, sizeof maps);
     pf_progress_t bar;
     pf_progress_begin(&bar, "photons", show_progress);
-    rc = pf_photon_pass(scene, accel, lights, &s, &maps, &summary->photons);
+    rc = budget ? pf_budget_plan_photons(budget, scene, accel, lights, &s) : PF_OK;
+    if (rc == PF_OK)
+        rc = pf_photon_pass(scene, accel, lights, &s, &maps, &summary->photons);
     pf_progress_end(&bar);
     if (rc == PF_OK) {
         pf_info("photon pass: %llu global + %llu caustic photons stored, %llu irradiance points "
@@ -50,6 +59,10 @@ int pf_job_render_local(const pf_scene_t *scene, const pf_settings_t *settings, 
                 summary->photons.build_s, summary->photons.irradiance_s);
         if (pf_photon_maps_index(&maps) != PF_OK)
             pf_warn("out of memory for the irradiance lookup grid: rendering goes on, slower");
+        if (budget) {
+            pf_budget_plan_spp(budget, scene, accel, lights, &maps, terms, threads, &s);
+            pf_budget_log(budget, &s);
+        }
         pf_render_ctx_t ctx;
         pf_render_ctx_init(&ctx, scene, accel, lights, &maps, &s);
         ctx.terms = terms;
@@ -68,5 +81,6 @@ int pf_job_render_local(const pf_scene_t *scene, const pf_settings_t *settings, 
     pf_lights_destroy(&lights);
     pf_accel_destroy(&accel);
     summary->total_s = pf_now() - t0;
+    summary->settings = s;
     return rc;
 }

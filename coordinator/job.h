@@ -7,6 +7,7 @@
 
 #include "common/image.h"
 #include "common/scene.h"
+#include "coordinator/budget.h"
 #include "coordinator/photon_trace.h"
 #include "worker/render.h"
 
@@ -15,6 +16,7 @@ typedef struct pf_job_summary {
     double accel_s, render_s, total_s;
     int threads;
     size_t bad_pixels; /* non-finite or negative channels in the result (must stay 0) */
+    pf_settings_t settings; /* the settings rendered with (a time limit chooses some) */
 } pf_job_summary_t;
 
 /* Renders scene with settings (size, threads, photons, ...) and terms (a
@@ -22,5 +24,11 @@ typedef struct pf_job_summary {
  * bar on stderr. 0 or a status with err filled. */
 int pf_job_render_local(const pf_scene_t *scene, const pf_settings_t *settings, unsigned terms, int show_progress,
                         pf_image_t *img, pf_job_summary_t *summary, pf_error_t *err);
+
+/* The same under a time limit when budget is not NULL: the photon counts and
+ * spp are chosen to finish by budget->deadline (budget.h); summary->settings
+ * holds what was chosen. */
+int pf_job_render(const pf_scene_t *scene, const pf_settings_t *settings, unsigned terms, int show_progress,
+                  pf_budget_t *budget, pf_image_t *img, pf_job_summary_t *summary, pf_error_t *err);
 
 #endif

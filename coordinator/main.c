@@ -3,6 +3,7 @@
  * 1 render failure, 2 usage error, 3 unreadable or malformed input,
  * 4 image sizes do not fit (compare). */
 #include <errno.h>
+#include <omp.h>
 #include <getopt.h>
 #include <inttypes.h>
 #include <stdio.h>
@@ -52,6 +53,11 @@ static void s_usage(FILE *f)
             "      --threads N          rendering threads (0: all cores)\n"
             "      --seed N             random seed (1); the image depends on nothing else\n"
             "      --exposure STOPS     PNG exposure in stops (0)\n"
+            "      --quality PRESET     draft, default or high: spp, gather rays and photons from the\n"
+            "                           benchmark curves (docs/benchmarks.md); other options override\n"
+            "      --time-limit SECONDS finish within SECONDS of wall clock (everything included) with the\n"
+            "                           lowest error it can: photons and spp chosen by measuring this\n"
+            "                           machine (or farm); given --spp/--photons are kept\n"
             "      --terms LIST         render only these terms: emitted,direct,caustic,indirect (all);\n"
             "                           photonmap shows the global map's radiance (debugging)\n"
             "\n"
@@ -108,6 +114,30 @@ static int s_parse_float(const char *s, float *out)
     return 0;
 }
 
+/* --quality presets, chosen from the time-against-error curves of the
+ * shipped scenes (docs/benchmarks.md): each is the setting with the lowest
+ * error found at its time budget (512x512, 2 cores). Options given beside a
+ * preset override its values. */
+typedef struct pf_quality {
+    const char *name;
+    int spp, gather;
+    uint64_t photons, caustic_photons;
+} pf_quality_t;
+
+static const pf_quality_t s_qualities[] = {
+    { "draft", 16, 1, 100000, 100000 },
+    { "default", 36, 4, 400000, 400000 },
+    { "high", 144, 4, 1000000, 1000000 },
+};
+
+static const pf_quality_t *s_find_quality(const char *name)
+{
+    for (size_t i = 0; i < sizeof s_qualities / sizeof *s_qualities; i++)
+        if (!strcmp(name, s_qualities[i].name))
+            return &s_qualities[i];
+    return NULL;
+}
+
 static int s_parse_terms(const char *s, unsigned *out)
 {
     unsigned t = 0;
@@ -154,7 +184,7 @@ static void s_default_output(const char *scene, char *out, size_t n)
 enum {
     OPT_HDR = 256, OPT_SIZE, OPT_SPP, OPT_PHOTONS, OPT_CPHOTONS, OPT_GATHER, OPT_LSAMPLES, OPT_GK, OPT_CK, OPT_CR,
     OPT_DEPTH, OPT_THREADS, OPT_SEED, OPT_EXPOSURE, OPT_TERMS, OPT_WORKERS, OPT_BIND, OPT_MINW, OPT_CSECRET,
-    OPT_CALLOW, OPT_TILE, OPT_HB, OPT_WATCHDOG, OPT_MAXWAIT, OPT_WEXE,
+    OPT_CALLOW, OPT_TILE, OPT_HB, OPT_WATCHDOG, OPT_MAXWAIT, OPT_WEXE, OPT_TLIMIT, OPT_QUALITY,
 };
 
 static volatile int s_interrupted;
@@ -181,7 +211,8 @@ static int s_cmd_render(int argc, char **argv)
         { "curve-secret", required_argument, 0, OPT_CSECRET }, { "curve-allow", required_argument, 0, OPT_CALLOW },
         { "tile", required_argument, 0, OPT_TILE },      { "heartbeat-ms", required_argument, 0, OPT_HB },
         { "watchdog", required_argument, 0, OPT_WATCHDOG }, { "max-wait", required_argument, 0, OPT_MAXWAIT },
-        { "worker-exe", required_argument, 0, OPT_WEXE }, { 0, 0, 0, 0 },
+        { "worker-exe", required_argument, 0, OPT_WEXE }, { "time-limit", required_argument, 0, OPT_TLIMIT },
+        { "quality", required_argument, 0, OPT_QUALITY }, { 0, 0, 0, 0 },
     };
     /* Command-line settings are applied over the scene's after it loads. */
     struct {
@@ -197,7 +228,8 @@ static int s_cmd_render(int argc, char **argv)
     pf_farm_opts_t farm;
     pf_farm_opts_default(&farm);
     int workers = 0;
-    float fval = 0;
+    float fval = 0, time_limit = 0;
+    const pf_quality_t *quality = NULL;
     int c;
     optind = 1;
     opterr = 0;
@@ -237,6 +269,8 @@ static int s_cmd_render(int argc, char **argv)
         case OPT_WATCHDOG: bad = s_parse_float(optarg, &fval) || fval <= 0; farm.watchdog_s = fval; break;
         case OPT_MAXWAIT: bad = s_parse_float(optarg, &fval) || fval < 0; farm.max_wait_s = fval; break;
         case OPT_WEXE: farm.worker_exe = optarg; break;
+        case OPT_TLIMIT: bad = s_parse_float(optarg, &time_limit) || time_limit <= 0 || time_limit > 1e7; break;
+        case OPT_QUALITY: bad = (quality = s_find_quality(optarg)) == NULL; break;
         case 'q': pf_log_set_level(PF_LOG_ERROR); break;
         case 'v': pf_log_set_level(PF_LOG_DEBUG); break;
         case 'h': s_usage(stdout); return 0;
@@ -275,6 +309,14 @@ static int s_cmd_render(int argc, char **argv)
         return EXIT_INPUT;
     }
     pf_settings_t s = scene->settings;
+    if (quality) {
+        s.spp = quality->spp;
+        s.gather = quality->gather;
+        s.photons = quality->photons;
+        s.caustic_photons = quality->caustic_photons;
+    }
+    if (time_limit > 0 && !o.has_gather)
+        s.gather = PF_BUDGET_GATHER;
     if (o.has_w) { s.width = o.w; s.height = o.h; }
     if (o.has_spp) s.spp = o.spp;
     if (o.has_photons) s.photons = o.photons;
@@ -293,8 +335,28 @@ static int s_cmd_render(int argc, char **argv)
         ntris += scene->meshes[i].ntris;
     pf_info("scene %s: %zu triangles, %zu spheres, %zu materials, %zu point/spot lights (%.2f s to load)", path, ntris,
             scene->nspheres, scene->nmats, scene->nlights, pf_now() - t0);
-    pf_info("settings: %dx%d, %d spp, %" PRIu64 " global + %" PRIu64 " caustic photons, %d gather rays, seed %" PRIu64,
-            s.width, s.height, s.spp, s.photons, s.caustic_photons, s.gather, s.seed);
+    pf_budget_t budget;
+    if (time_limit > 0) {
+        int render_threads;
+        if (workers > 0)
+            render_threads = workers * (o.has_threads && o.threads > 0 ? o.threads
+                                        : omp_get_num_procs() / workers > 0 ? omp_get_num_procs() / workers : 1);
+        else if (farm.bind)
+            render_threads = farm.min_workers * omp_get_num_procs(); /* assumed: remote workers like this machine */
+        else
+            render_threads = o.has_threads && o.threads > 0 ? o.threads : omp_get_num_procs();
+        pf_budget_init(&budget, t0, time_limit, render_threads);
+        budget.fix_photons = o.has_photons;
+        budget.fix_caustic = o.has_cphotons;
+        budget.fix_spp = o.has_spp;
+        pf_info("settings: %dx%d, time limit %.3g s (photons and spp chosen below), %d gather rays, seed %" PRIu64,
+                s.width, s.height, time_limit, s.gather, s.seed);
+    } else {
+        pf_info("settings: %dx%d, %d spp, %" PRIu64 " global + %" PRIu64
+                " caustic photons, %d gather rays, seed %" PRIu64 "%s%s",
+                s.width, s.height, s.spp, s.photons, s.caustic_photons, s.gather, s.seed,
+                quality ? ", quality " : "", quality ? quality->name : "");
+    }
 
     pf_image_t img = { 0 };
     pf_job_summary_t sum;
@@ -305,6 +367,7 @@ static int s_cmd_render(int argc, char **argv)
         farm.local_workers = workers;
         farm.worker_threads = o.has_threads ? o.threads : 0;
         farm.show_progress = 1;
+        farm.budget = time_limit > 0 ? &budget : NULL;
         s.threads = 0;
         struct sigaction sa;
         memset(&sa, 0, sizeof sa);
@@ -326,7 +389,7 @@ static int s_cmd_render(int argc, char **argv)
         sum.photons = fs.photons;
         sum.render_s = fs.render_s;
     } else {
-        rc = pf_job_render_local(scene, &s, terms, 1, &img, &sum, &err);
+        rc = pf_job_render(scene, &s, terms, 1, time_limit > 0 ? &budget : NULL, &img, &sum, &err);
         pf_scene_destroy(&scene);
         if (rc != PF_OK) {
             pf_error("render failed: %s", err.msg);
@@ -343,9 +406,12 @@ static int s_cmd_render(int argc, char **argv)
         pf_error("%s", err.msg);
         return EXIT_RENDER;
     }
-    pf_info("done in %.2f s: photons %.2f s, render %.2f s -> %s%s%s", pf_now() - t0,
+    double total = pf_now() - t0;
+    pf_info("done in %.2f s: photons %.2f s, render %.2f s -> %s%s%s", total,
             sum.photons.trace_s + sum.photons.build_s + sum.photons.irradiance_s, sum.render_s, out, hdr ? ", " : "",
             hdr ? hdr : "");
+    if (time_limit > 0 && total > time_limit)
+        pf_warn("the time limit of %.3g s was overrun by %.2f s", time_limit, total - time_limit);
     return 0;
 }
 

@@ -410,6 +410,48 @@ run render "$SCENES/cornell-box/scene.json" "${SMALL[@]}" --size 8x8 -o "$T/adir
 check "-o naming a directory exits 1" rc_is 1
 check "-o naming a directory leaves no temporary file" test ! -e "$T/adir.tmp"
 
+# ---------------------------------------------------------------------------
+echo "# 10. --time-limit and --quality"
+
+# timed_run LIMIT ARGS...: run, and keep the wall time in $wall.
+wall=0
+timed_run() {
+    local t0 t1
+    t0=$(date +%s.%N)
+    run "$@"
+    t1=$(date +%s.%N)
+    wall=$(awk -v a="$t0" -v b="$t1" 'BEGIN { printf "%.2f", b - a }')
+}
+# within LIMIT: the last run's wall time is under LIMIT plus half a second
+# for starting the process and loading the scene (the planner counts from
+# its own start).
+within() { awk -v w="$wall" -v l="$1" 'BEGIN { exit !(w <= l + 0.5) }'; }
+
+timed_run render "$SCENES/cornell-spheres/scene.json" --size 128x128 --time-limit 4 -o "$T/tl.png" --hdr "$T/tl.pfm"
+check "--time-limit 4 renders (exit 0)" rc_is 0
+check "--time-limit 4 finishes within 4 s (took $wall s)" within 4
+check "--time-limit logs the plan it made" err_has "time limit 4 s:"
+check "--time-limit gives a clean, non-black PFM" pfm_clean "$T/tl.pfm"
+spp=$(sed -n 's/.*caustic photons, \([0-9]*\) spp x.*/\1/p' "$T/err" | head -1)
+check "--time-limit 4 at 128x128 affords several samples per pixel (chose ${spp:-none})" test "${spp:-0}" -ge 4
+run render "$SCENES/cornell-spheres/scene.json" --size 64x64 --time-limit 3 --spp 2 -o "$T/tl2.png"
+check "--time-limit keeps a given --spp" err_has "caustic photons, 2 spp x"
+timed_run render "$SCENES/cornell-box/scene.json" --size 96x96 --time-limit 6 --workers 2 -o "$T/tlf.png" --hdr "$T/tlf.pfm"
+check "--time-limit 6 with two workers renders (exit 0)" rc_is 0
+check "--time-limit 6 with two workers finishes within 6 s (took $wall s)" within 6
+check "the farm's image under a time limit is clean" pfm_clean "$T/tlf.pfm"
+for v in 0 -1 abc 1e9; do
+    run render "$SCENES/cornell-box/scene.json" --time-limit "$v" -o "$T/x.png"
+    check "--time-limit $v exits 2" rc_is 2
+done
+run render "$SCENES/cornell-box/scene.json" --size 32x32 --quality draft --photons 20000 --caustic-photons 20000 -o "$T/q.png" --hdr "$T/q.pfm"
+check "--quality draft renders (exit 0)" rc_is 0
+check "--quality draft is named in the settings line" err_has "quality draft"
+check "--quality draft keeps the given --photons" err_has "20000 global + 20000 caustic photons"
+check "--quality draft gives a clean PFM" pfm_clean "$T/q.pfm"
+run render "$SCENES/cornell-box/scene.json" --quality bogus -o "$T/x.png"
+check "--quality bogus exits 2" rc_is 2
+
 if [ "$known" -gt 0 ]; then
     echo "($known known bugs reported above do not count as failures)"
 fi

@@ -3,7 +3,7 @@
  * precomputed irradiance (Jensen 2001, ch. 9; Christensen 1999).
  *
  * Parameters (pf_settings_t; defaults in scene.c):
- *   spp            16   camera samples per pixel, stratified k x k when spp = k^2 (box filter)
+ *   spp            16   camera samples per pixel, stratified kx x ky (box filter)
  *   light_samples  1    shadow rays per camera sample at a non-specular point
  *   gather         16   final-gather rays per camera sample at a diffuse point, scaled by
  *                       the path's throughput (at least 1) below specular splits;
@@ -56,12 +56,41 @@
 #include "common/bsdf.h"
 #include "common/rng.h"
 
+/* The camera samples of one pixel reach nearly the same points, and the
+ * caustic estimate is a blur of radius r (its k-th photon's distance), so an
+ * estimate is reused for a point closer than S_CAUSTIC_REUSE * r to the one
+ * it was made at, on a surface facing the same way. Kept per pixel (reset at
+ * each), so the image stays a function of the pixel alone. */
+#define S_CAUSTIC_REUSE 0.25f
+
 /* Per-thread state for one pixel sample. */
 typedef struct s_state {
     const pf_render_ctx_t *ctx;
     pf_rng_t rng;
+    int caustic_valid;
+    pf_vec3 caustic_p, caustic_n, caustic_e;
+    float caustic_reach2;
     pf_knn_t scratch[PF_MAX_K];
 } s_state;
+
+/* Caustic irradiance at p (surface normal nf), reusing the pixel's last
+ * estimate when it was made close enough. */
+static pf_vec3 s_caustic(s_state *st, pf_vec3 p, pf_vec3 nf)
+{
+    if (st->caustic_valid && pf_dot(nf, st->caustic_n) > 0.999f &&
+        pf_dot(pf_sub(p, st->caustic_p), pf_sub(p, st->caustic_p)) < st->caustic_reach2)
+        return st->caustic_e;
+    const pf_render_ctx_t *c = st->ctx;
+    float r2 = 0.0f;
+    pf_vec3 e = pf_pm_irradiance_cone(c->maps->caustic, p, nf, c->settings.caustic_k, c->maps->caustic_r2,
+                                      st->scratch, &r2);
+    st->caustic_valid = 1;
+    st->caustic_p = p;
+    st->caustic_n = nf;
+    st->caustic_e = e;
+    st->caustic_reach2 = S_CAUSTIC_REUSE * S_CAUSTIC_REUSE * r2;
+    return e;
+}
 
 static inline float s_u(s_state *st) { return pf_rng_float(&st->rng); }
 
@@ -196,8 +225,7 @@ static pf_vec3 s_radiance(s_state *st, pf_ray_t ray, int depth, pf_vec3 thr, int
             L = pf_add(L, s_direct(st, &h, m, nf, ns, wo));
         if (!pf_is_black(m->kd)) {
             if (c->terms & PF_TERM_CAUSTIC) {
-                pf_vec3 e = pf_pm_irradiance_cone(c->maps->caustic, h.p, nf, c->settings.caustic_k,
-                                                  c->maps->caustic_r2, st->scratch);
+                pf_vec3 e = s_caustic(st, h.p, nf);
                 L = pf_add(L, pf_scale(pf_mul(m->kd, e), PF_INV_PI));
             }
             if (c->terms & PF_TERM_INDIRECT) {
@@ -267,22 +295,28 @@ void pf_render_tile(const pf_render_ctx_t *ctx, int x0, int y0, int w, int h, fl
     PF_CHECK(st != NULL);
     st->ctx = ctx;
     int spp = ctx->settings.spp > 0 ? ctx->settings.spp : 1;
-    /* Jitter is stratified on a k x k grid when spp = k^2 (edges against the
-     * bright light dominate the error otherwise), random otherwise. */
-    int strata = (int)lrintf(sqrtf((float)spp));
-    if (strata * strata != spp)
-        strata = 0;
+    /* Jitter is stratified on a kx x ky grid, kx = floor(sqrt(spp)) and
+     * ky = floor(spp / kx) (edges against the bright light dominate the error
+     * otherwise); the few samples beyond kx * ky are uniform. A square spp
+     * fills a k x k grid. */
+    int kx = (int)sqrt((double)spp);
+    while ((kx + 1) * (kx + 1) <= spp)
+        kx++;
+    while (kx * kx > spp)
+        kx--;
+    int ky = spp / kx, strata = kx * ky;
     for (int y = 0; y < h; y++) {
         for (int x = 0; x < w; x++) {
             int px = x0 + x, py = y0 + y;
             uint64_t pixel = (uint64_t)py * (uint64_t)ctx->camera.width + (uint64_t)px;
             double acc[3] = { 0, 0, 0 };
+            st->caustic_valid = 0;
             for (int s = 0; s < spp; s++) {
                 st->rng = pf_rng_make(ctx->settings.seed, PF_STREAM_PIXEL, pixel, (uint32_t)s);
                 float jx = s_u(st), jy = s_u(st);
-                if (strata) {
-                    jx = ((float)(s % strata) + jx) / (float)strata;
-                    jy = ((float)(s / strata) + jy) / (float)strata;
+                if (s < strata) {
+                    jx = ((float)(s % kx) + jx) / (float)kx;
+                    jy = ((float)(s / kx) + jy) / (float)ky;
                 }
                 pf_ray_t ray = pf_camera_ray(&ctx->camera, (float)px + jx, (float)py + jy);
                 pf_vec3 L = s_radiance(st, ray, 0, pf_v3s(1.0f), 1);

@@ -1,0 +1,126 @@
+/* budget.c: the time-limit planner; see budget.h for how it decides. Called
+ * from the thread that runs the photon pass (the main thread in-process, the
+ * farm's photon thread); the probe renders with OpenMP. */
+#include "coordinator/budget.h"
+
+#include <inttypes.h>
+#include <math.h>
+#include <omp.h>
+#include <string.h>
+
+#include "common/log.h"
+#include "coordinator/photon_trace.h"
+#include "worker/render.h"
+
+/* Writing the image and the farm's last results take a moment after the
+ * last tile; the render may overrun its estimate by this fraction. */
+#define S_RESERVE_S 0.25
+#define S_RESERVE_SHARE 0.03
+#define S_SAFETY 0.85
+
+void pf_budget_init(pf_budget_t *b, double start, double limit_s, int render_threads)
+{
+    memset(b, 0, sizeof *b);
+    b->limit_s = limit_s;
+    b->deadline = start + limit_s;
+    b->render_threads = render_threads > 0 ? render_threads : 1;
+}
+
+double pf_budget_left(const pf_budget_t *b) { return b->deadline - pf_now(); }
+
+static uint64_t s_clamp_photons(double n)
+{
+    if (!(n > PF_BUDGET_MIN_PHOTONS))
+        return PF_BUDGET_MIN_PHOTONS;
+    if (n > PF_BUDGET_MAX_PHOTONS)
+        return PF_BUDGET_MAX_PHOTONS;
+    return (uint64_t)n;
+}
+
+int pf_budget_plan_photons(pf_budget_t *b, const pf_scene_t *scene, const pf_accel_t *accel,
+                           const pf_lights_t *lights, pf_settings_t *s)
+{
+    if (b->fix_photons && b->fix_caustic)
+        return PF_OK;
+    pf_settings_t cal = *s;
+    cal.photons = s->photons ? PF_BUDGET_CAL_PHOTONS : 0;
+    cal.caustic_photons = s->caustic_photons ? PF_BUDGET_CAL_PHOTONS : 0;
+    pf_photon_maps_t maps;
+    pf_photon_stats_t st;
+    double t0 = pf_now();
+    int rc = pf_photon_pass(scene, accel, lights, &cal, &maps, &st);
+    double dt = pf_now() - t0;
+    if (rc != PF_OK)
+        return rc;
+    int has_caustic = maps.caustic_emitted > 0;
+    pf_photon_maps_free(&maps);
+    uint64_t emitted = cal.photons + (has_caustic ? cal.caustic_photons : 0);
+    if (!has_caustic)
+        s->caustic_photons = 0; /* no specular surface: the pass would skip it anyway */
+    if (emitted == 0)
+        return PF_OK;
+    b->photon_s_per_photon = dt / (double)emitted;
+    double n = PF_BUDGET_PHOTON_SHARE * pf_budget_left(b) / b->photon_s_per_photon;
+    int maps_n = (s->photons ? 1 : 0) + (s->caustic_photons ? 1 : 0);
+    if (maps_n == 0)
+        return PF_OK;
+    uint64_t each = s_clamp_photons(n / maps_n);
+    if (s->photons && !b->fix_photons)
+        s->photons = each;
+    if (s->caustic_photons && !b->fix_caustic)
+        s->caustic_photons = each;
+    return PF_OK;
+}
+
+void pf_budget_plan_spp(pf_budget_t *b, const pf_scene_t *scene, const pf_accel_t *accel, const pf_lights_t *lights,
+                        const pf_photon_maps_t *maps, unsigned terms, int local_threads, pf_settings_t *s)
+{
+    if (b->fix_spp)
+        return;
+    pf_settings_t probe = *s;
+    probe.spp = 1;
+    pf_render_ctx_t ctx;
+    pf_render_ctx_init(&ctx, scene, accel, lights, maps, &probe);
+    ctx.terms = terms;
+    uint64_t npx = (uint64_t)s->width * (uint64_t)s->height;
+    int n = npx < PF_BUDGET_PROBE_PIXELS ? (int)npx : PF_BUDGET_PROBE_PIXELS;
+    if (local_threads < 1)
+        local_threads = 1;
+    double t0 = pf_now();
+#pragma omp parallel num_threads(local_threads)
+    {
+        pf_accel_thread_init();
+        float px[3];
+        /* Evenly spaced over the image in scan order, offset by half a step,
+         * so the probe sees each part of the view in proportion. */
+#pragma omp for schedule(dynamic, 16)
+        for (int i = 0; i < n; i++) {
+            uint64_t k = ((uint64_t)i * npx + npx / (2 * (uint64_t)n)) / (uint64_t)n;
+            pf_render_tile(&ctx, (int)(k % (uint64_t)s->width), (int)(k / (uint64_t)s->width), 1, 1, px);
+        }
+    }
+    double wall = pf_now() - t0;
+    b->sample_s = wall * (double)local_threads / (double)n;
+    double left = pf_budget_left(b) - S_RESERVE_S - S_RESERVE_SHARE * b->limit_s;
+    double per_spp = (double)npx * b->sample_s / (double)b->render_threads;
+    double spp = per_spp > 0.0 ? floor(S_SAFETY * left / per_spp) : 1.0;
+    if (!(spp >= 1.0)) {
+        pf_warn("time limit: even one sample per pixel needs about %.1f s more than the %.1f s left; "
+                "rendering with 1",
+                per_spp - left, left > 0.0 ? left : 0.0);
+        spp = 1.0;
+    }
+    if (spp > (double)(1 << 16))
+        spp = (double)(1 << 16);
+    s->spp = (int)spp;
+    b->planned_render_s = per_spp * spp;
+}
+
+void pf_budget_log(const pf_budget_t *b, const pf_settings_t *s)
+{
+    pf_info("time limit %.3g s: %" PRIu64 " global + %" PRIu64 " caustic photons, %d spp x %d gather rays "
+            "(%.2f us per photon, %.1f us per camera sample per thread; render planned at %.1f s on %d threads, "
+            "%.1f s left)",
+            b->limit_s, s->photons, s->caustic_photons, s->spp, s->gather, b->photon_s_per_photon * 1e6,
+            b->sample_s * 1e6, b->planned_render_s, b->render_threads, pf_budget_left(b));
+}

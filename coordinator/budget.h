@@ -1,0 +1,71 @@
+/* budget.h: `--time-limit`: the photon counts and the samples per pixel that
+ * fit a wall-clock limit on this machine (or farm), chosen by measuring, not
+ * guessing.
+ *
+ * How it decides (docs/benchmarks.md shows the curves behind the rules):
+ *   1. Photons. A calibration pass of PF_BUDGET_CAL_PHOTONS photons per map
+ *      (trace, kd-trees, irradiance) gives the seconds per photon; the photon
+ *      pass then gets PF_BUDGET_PHOTON_SHARE of the time left, within
+ *      [PF_BUDGET_MIN_PHOTONS, PF_BUDGET_MAX_PHOTONS] per map. The maps'
+ *      error matters less than the pixels' (the renders at 512x512 say so:
+ *      four times the photons lower relMSE by 9 %, four times the camera
+ *      samples by 34 %), hence the small share.
+ *   2. Samples. With the maps built, a probe renders one sample at each of
+ *      PF_BUDGET_PROBE_PIXELS pixels spread over the image, which gives the
+ *      thread-seconds per camera sample for this scene and view; spp is the
+ *      number of samples per pixel that fills the time left (less a reserve
+ *      for writing the image and a safety margin) on all the threads that
+ *      will render: this process's, or every worker's together.
+ * The image is then rendered in one pass with that spp, so it is the same
+ * image a render with those settings gives (deterministic given the choices;
+ * the choices depend on the machine's speed). */
+#ifndef PF_BUDGET_H
+#define PF_BUDGET_H
+
+#include "common/accel.h"
+#include "common/light.h"
+#include "common/photonmap.h"
+#include "common/scene.h"
+
+#define PF_BUDGET_CAL_PHOTONS 20000
+#define PF_BUDGET_PHOTON_SHARE 0.12
+#define PF_BUDGET_MIN_PHOTONS PF_BUDGET_CAL_PHOTONS
+#define PF_BUDGET_MAX_PHOTONS 4000000
+#define PF_BUDGET_PROBE_PIXELS 2048
+/* Final-gather rays per camera sample under a time limit: at equal time, more
+ * camera samples with few gather rays each give the lower error. */
+#define PF_BUDGET_GATHER 4
+
+typedef struct pf_budget {
+    double deadline;    /* pf_now() by which the image must be written */
+    double limit_s;     /* the limit as given */
+    int render_threads; /* threads that will render the image, all workers together */
+    int fix_photons, fix_caustic, fix_spp; /* given on the command line: kept as they are */
+    /* Filled in as the plan is made, for the summary. */
+    double photon_s_per_photon, sample_s; /* calibration: seconds per photon, thread-seconds per camera sample */
+    double planned_render_s;
+} pf_budget_t;
+
+/* A budget of limit_s seconds counted from start (pf_now() at program start). */
+void pf_budget_init(pf_budget_t *b, double start, double limit_s, int render_threads);
+
+/* Seconds left before the deadline (negative when past it). */
+double pf_budget_left(const pf_budget_t *b);
+
+/* Chooses s->photons and s->caustic_photons (and s->gather) for the time
+ * left, running a small calibration photon pass with s->threads threads.
+ * 0 or a status (out of memory, Embree). */
+int pf_budget_plan_photons(pf_budget_t *b, const pf_scene_t *scene, const pf_accel_t *accel,
+                           const pf_lights_t *lights, pf_settings_t *s);
+
+/* Chooses s->spp for the time left, with the maps built: renders the probe
+ * with local_threads threads. maps must be indexed (pf_photon_maps_index) as
+ * the real render will be. Always succeeds; spp is at least 1 (a warning
+ * says when even that will not fit). */
+void pf_budget_plan_spp(pf_budget_t *b, const pf_scene_t *scene, const pf_accel_t *accel, const pf_lights_t *lights,
+                        const pf_photon_maps_t *maps, unsigned terms, int local_threads, pf_settings_t *s);
+
+/* Logs the plan: the settings chosen and the measurements behind them. */
+void pf_budget_log(const pf_budget_t *b, const pf_settings_t *s);
+
+#endif
