@@ -776,7 +776,7 @@ static void s_invariance_scene(const char *path, int with_point, double max_relm
             CHECK(pf_metrics_compare(&other, &ref, &m, &err) == PF_OK, "compare: %s", err.msg);
             PF_CHECK(pf_image_downsample(&other, 4, &small) == PF_OK);
             CHECK(pf_metrics_compare(&small, &ref_small, &mb, &err) == PF_OK, "compare: %s", err.msg);
-            printf("%s: relMSE %.2e at %dx%d, %.2e at %dx%d (bound %.0e), luminance ratio %.5f (bound 1 +- %.3f), "
+            printf("%s: relMSE %.2e at %dx%d, %.2e at %dx%d (bound %.1e), luminance ratio %.5f (bound 1 +- %.3f), "
                    "%.1f s\n",
                    vw, m.relmse, ref.width, ref.height, mb.relmse, small.width, small.height, max_relmse, m.lum_ratio,
                    max_lum, secs);
@@ -1123,6 +1123,7 @@ typedef struct s_bad_case {
     int warnings;         /* warning lines expected when it loads */
     const char *warn_has; /* text the one warning must hold (when warnings == 1) */
     size_t min_photons;   /* global photons that must be stored (of 2000 emitted) */
+    const char *same_as;  /* a case whose scene this one scales: same mean and photon count within 1 % */
 } s_bad_case_t;
 
 static void s_test_degenerate(void)
@@ -1132,29 +1133,33 @@ static void s_test_degenerate(void)
      * point light 2 above it, the floor holds about a tenth of all directions. */
     static const s_bad_case_t cases[] = {
         /* Skipped with one warning line; the rest renders. */
-        { "zero-area.obj", NULL, 1, "zero-area.obj: skipped 4 degenerate triangles", 1000 },
-        { "huge.obj", NULL, 1, "huge.obj: skipped 1 degenerate triangle", 1000 },
-        { "far-triangle.obj", NULL, 1, "far-triangle.obj: skipped 1 degenerate triangle", 1000 },
-        { "huge.ply", NULL, 1, "huge.ply: skipped 1 degenerate triangle", 1 },
-        { "huge-quad.json", NULL, 1, "huge-quad.json: skipped 2 degenerate triangles", 1000 },
-        /* Large or small but legal: loads without a word and renders. */
-        { "distant-sphere.json", NULL, 0, NULL, 100 },
-        { "bright-light.json", NULL, 0, NULL, 0 },
-        { "tiny.obj", NULL, 0, NULL, 1000 },
+        { "zero-area.obj", NULL, 1, "zero-area.obj: skipped 4 degenerate triangles", 1000, NULL },
+        { "huge.obj", NULL, 1, "huge.obj: skipped 1 degenerate triangle", 1000, "zero-area.obj" },
+        { "far-triangle.obj", NULL, 1, "far-triangle.obj: skipped 1 degenerate triangle", 1000, "zero-area.obj" },
+        { "huge.ply", NULL, 1, "huge.ply: skipped 1 degenerate triangle", 1, NULL },
+        { "huge-quad.json", NULL, 1, "huge-quad.json: skipped 2 degenerate triangles", 1000, NULL },
+        /* Large or small but legal: loads without a word and renders. The
+         * tiny room is zero-area.obj's room scaled by 1e-6. */
+        { "distant-sphere.json", NULL, 0, NULL, 100, NULL },
+        { "bright-light.json", NULL, 0, NULL, 0, NULL },
+        { "tiny.obj", NULL, 0, NULL, 1000, "zero-area.obj" },
         /* Rejected with an error naming the file and line. */
-        { "nan-vertex.obj", "tests/data/stress/nan-vertex.obj:6:", 0, NULL, 0 },
-        { "inf-vertex.obj", "tests/data/stress/inf-vertex.obj:5:", 0, NULL, 0 },
-        { "overflow-vertex.obj", "tests/data/stress/overflow-vertex.obj:4:", 0, NULL, 0 },
-        { "inf-normal.obj", "tests/data/stress/inf-normal.obj:6:", 0, NULL, 0 },
-        { "nan.ply", "tests/data/stress/nan.ply:13:", 0, NULL, 0 },
-        { "inf.ply", "tests/data/stress/inf.ply:11:", 0, NULL, 0 },
-        { "overflow-sphere.json", "tests/data/stress/overflow-sphere.json:6:", 0, NULL, 0 },
-        { "overflow-light.json", "tests/data/stress/overflow-light.json:8:", 0, NULL, 0 },
-        { "huge-scale.json", "tests/data/stress/huge-scale.json:7:", 0, NULL, 0 },
-        { "far-light.json", "tests/data/stress/far-light.json:11:", 0, NULL, 0 },
-        { "far-sphere.json", "tests/data/stress/far-sphere.json:8:", 0, NULL, 0 },
-        { "far-camera.json", "tests/data/stress/far-camera.json:4:", 0, NULL, 0 },
+        { "nan-vertex.obj", "tests/data/stress/nan-vertex.obj:6:", 0, NULL, 0, NULL },
+        { "inf-vertex.obj", "tests/data/stress/inf-vertex.obj:5:", 0, NULL, 0, NULL },
+        { "overflow-vertex.obj", "tests/data/stress/overflow-vertex.obj:4:", 0, NULL, 0, NULL },
+        { "inf-normal.obj", "tests/data/stress/inf-normal.obj:6:", 0, NULL, 0, NULL },
+        { "nan.ply", "tests/data/stress/nan.ply:13:", 0, NULL, 0, NULL },
+        { "inf.ply", "tests/data/stress/inf.ply:11:", 0, NULL, 0, NULL },
+        { "overflow-sphere.json", "tests/data/stress/overflow-sphere.json:6:", 0, NULL, 0, NULL },
+        { "overflow-light.json", "tests/data/stress/overflow-light.json:8:", 0, NULL, 0, NULL },
+        { "huge-scale.json", "tests/data/stress/huge-scale.json:7:", 0, NULL, 0, NULL },
+        { "far-light.json", "tests/data/stress/far-light.json:11:", 0, NULL, 0, NULL },
+        { "far-sphere.json", "tests/data/stress/far-sphere.json:8:", 0, NULL, 0, NULL },
+        { "far-camera.json", "tests/data/stress/far-camera.json:4:", 0, NULL, 0, NULL },
     };
+    /* Results of the loaded cases, for same_as. */
+    double means[sizeof cases / sizeof *cases] = { 0 };
+    size_t stored[sizeof cases / sizeof *cases] = { 0 };
     for (size_t i = 0; i < sizeof cases / sizeof *cases; i++) {
         const s_bad_case_t *c = &cases[i];
         char path[256], first[2048];
@@ -1197,6 +1202,17 @@ static void s_test_degenerate(void)
             CHECK(bad == 0, "%s: %zu photons or irradiance points with non-finite or negative power", c->file, bad);
             CHECK(pf_kdtree_size(maps.global) >= c->min_photons, "%s: %zu global photons stored, expected >= %zu",
                   c->file, pf_kdtree_size(maps.global), c->min_photons);
+            means[i] = s_mean(&img);
+            stored[i] = pf_kdtree_size(maps.global);
+            for (size_t j = 0; c->same_as && j < i; j++) {
+                if (strcmp(cases[j].file, c->same_as) != 0)
+                    continue;
+                double mr = means[i] / means[j], pr = (double)stored[i] / (double)stored[j];
+                printf("%s against %s: mean ratio %.4f, stored-photon ratio %.4f (bounds 1 +- 0.01)\n", c->file,
+                       c->same_as, mr, pr);
+                CHECK(fabs(mr - 1.0) <= 0.01 && fabs(pr - 1.0) <= 0.01,
+                      "%s renders unlike %s: mean ratio %.4f, stored-photon ratio %.4f", c->file, c->same_as, mr, pr);
+            }
             pf_image_free(&img);
             s_job_end(&job);
         }
