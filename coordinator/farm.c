@@ -107,6 +107,8 @@ static void *s_photon_thread(void *arg)
         if (p->rc)
             pf_error_set(&p->err, p->rc, NULL, 0, "photon pass failed: %s", pf_strerror(p->rc));
     }
+    if (p->rc == PF_OK)
+        pf_photon_skip_gather(&p->stats, &p->settings);
     if (p->rc == PF_OK && p->budget) {
         /* The probe renders here with the coordinator's cores, as the workers will. */
         pf_photon_maps_index(&p->maps);

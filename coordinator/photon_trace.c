@@ -20,6 +20,7 @@
  * pf_photon_pass; each thread sets FTZ/DAZ. */
 #include "coordinator/photon_trace.h"
 
+#include <inttypes.h>
 #include <omp.h>
 #include <stdlib.h>
 #include <string.h>
@@ -34,6 +35,7 @@
 typedef struct s_buf {
     pf_photon_t *p;
     size_t n, cap;
+    uint64_t indirect; /* photons stored after a non-specular bounce */
 } s_buf;
 
 static int s_push(s_buf *b, const pf_photon_t *ph)
@@ -94,6 +96,7 @@ static int s_trace(const s_ctx *c, uint64_t seed, uint64_t index, uint64_t emitt
                                    pf_oct_encode(ray.d), pf_oct_encode(nf) };
                 if (s_push(buf, &ph))
                     return PF_ENOMEM;
+                buf->indirect += !specular_only;
             }
             if (caustic)
                 return 0;
@@ -148,7 +151,7 @@ static int s_trace(const s_ctx *c, uint64_t seed, uint64_t index, uint64_t emitt
 /* Traces photons [0, emitted) of one map in parallel blocks and joins them in
  * block order. *out receives a malloc'd array of *count photons. */
 static int s_trace_map(const s_ctx *c, uint64_t seed, uint64_t emitted, int caustic, int threads,
-                       pf_photon_t **out, size_t *count, uint64_t *rejected)
+                       pf_photon_t **out, size_t *count, uint64_t *rejected, uint64_t *indirect)
 {
     *out = NULL;
     *count = 0;
@@ -177,8 +180,10 @@ static int s_trace_map(const s_ctx *c, uint64_t seed, uint64_t emitted, int caus
         }
     }
     size_t total = 0;
-    for (size_t b = 0; b < nblocks; b++)
+    for (size_t b = 0; b < nblocks; b++) {
         total += bufs[b].n;
+        *indirect += bufs[b].indirect;
+    }
     pf_photon_t *all = failed ? NULL : malloc((total ? total : 1) * sizeof *all);
     if (all) {
         size_t k = 0;
@@ -232,10 +237,12 @@ int pf_photon_pass(const pf_scene_t *scene, const pf_accel_t *accel, const pf_li
     pf_photon_t *gp = NULL, *cp = NULL;
     size_t gn = 0, cn = 0;
     int rc = PF_OK;
+    uint64_t unused = 0;
     if (settings->photons)
-        rc = s_trace_map(&c, settings->seed, settings->photons, 0, threads, &gp, &gn, &stats->rejected);
+        rc = s_trace_map(&c, settings->seed, settings->photons, 0, threads, &gp, &gn, &stats->rejected,
+                         &stats->indirect_stored);
     if (rc == PF_OK && caustic_photons)
-        rc = s_trace_map(&c, settings->seed, caustic_photons, 1, threads, &cp, &cn, &stats->rejected);
+        rc = s_trace_map(&c, settings->seed, caustic_photons, 1, threads, &cp, &cn, &stats->rejected, &unused);
     free(targets);
     double t1 = pf_now();
     stats->trace_s = t1 - t0;
@@ -254,8 +261,18 @@ int pf_photon_pass(const pf_scene_t *scene, const pf_accel_t *accel, const pf_li
         pf_photon_maps_free(maps);
         return PF_ENOMEM;
     }
-    rc = pf_irradiance_precompute(maps->global, settings->irradiance_stride, settings->global_k, maps->global_r2,
-                                  threads, &maps->irradiance);
+    /* No photon reached a non-specular surface after leaving another: no
+     * diffuse point sees a lit one, the final gather would find nothing, and
+     * the irradiance it reads need not be computed (pf_photon_skip_gather). */
+    stats->gather_skipped = settings->photons > 0 && gn > 0 && stats->indirect_stored == 0;
+    if (stats->gather_skipped) {
+        pf_photon_t *none = malloc(sizeof *none); /* an empty tree still owns an array */
+        maps->irradiance = none ? pf_kdtree_build(&none, 0) : NULL;
+        rc = maps->irradiance ? PF_OK : PF_ENOMEM;
+    } else {
+        rc = pf_irradiance_precompute(maps->global, settings->irradiance_stride, settings->global_k,
+                                      maps->global_r2, threads, &maps->irradiance);
+    }
     stats->irradiance_s = pf_now() - t2;
     if (rc != PF_OK) {
         pf_photon_maps_free(maps);
@@ -263,4 +280,14 @@ int pf_photon_pass(const pf_scene_t *scene, const pf_accel_t *accel, const pf_li
     }
     stats->irradiance_points = pf_kdtree_size(maps->irradiance);
     return PF_OK;
+}
+
+void pf_photon_skip_gather(const pf_photon_stats_t *stats, pf_settings_t *s)
+{
+    if (!stats->gather_skipped || s->gather == 0)
+        return;
+    pf_info("final gather skipped: no light reaches a diffuse surface from another one (none of %" PRIu64
+            " stored global photons had bounced off a non-specular surface)",
+            stats->global_stored);
+    s->gather = 0;
 }

@@ -11,6 +11,8 @@
 typedef struct pf_photon_stats {
     uint64_t global_stored, caustic_stored, irradiance_points;
     uint64_t rejected;          /* photons dropped for non-finite or negative power */
+    uint64_t indirect_stored;   /* global photons stored after a non-specular bounce */
+    int gather_skipped;         /* none were: no irradiance was precomputed (pf_photon_skip_gather) */
     double trace_s, build_s, irradiance_s;
 } pf_photon_stats_t;
 
@@ -19,5 +21,10 @@ typedef struct pf_photon_stats {
  * so the maps are identical for any thread count. 0 or a status. */
 int pf_photon_pass(const pf_scene_t *scene, const pf_accel_t *accel, const pf_lights_t *lights,
                    const pf_settings_t *settings, pf_photon_maps_t *maps, pf_photon_stats_t *stats);
+
+/* When the pass found no diffuse-to-diffuse transport (stats->gather_skipped),
+ * sets s->gather to 0 and logs the skip; the final gather would add exactly
+ * nothing. Call before the settings go to the renderer. */
+void pf_photon_skip_gather(const pf_photon_stats_t *stats, pf_settings_t *s);
 
 #endif

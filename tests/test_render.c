@@ -230,6 +230,117 @@ static void s_test_determinism(void)
     pf_scene_destroy(&scene);
 }
 
+/* A diffuse square under a point light: nothing diffuse sees anything lit. */
+static pf_scene_t *s_plane_scene(void)
+{
+    pf_scene_t *scene = pf_scene_create();
+    pf_material_t m = pf_material_default("plane");
+    m.kd = pf_v3s(0.7f);
+    uint32_t mat = (uint32_t)pf_scene_add_material(scene, &m);
+    pf_mesh_t q = { 0 };
+    snprintf(q.name, sizeof q.name, "plane");
+    q.nverts = 4;
+    q.ntris = 2;
+    q.pos = malloc(4 * sizeof *q.pos);
+    q.idx = malloc(6 * sizeof *q.idx);
+    q.mat = malloc(2 * sizeof *q.mat);
+    const pf_vec3 v[4] = { { -1, 0, -1 }, { 1, 0, -1 }, { 1, 0, 1 }, { -1, 0, 1 } };
+    const uint32_t idx[6] = { 0, 2, 1, 0, 3, 2 };
+    memcpy(q.pos, v, sizeof v);
+    memcpy(q.idx, idx, sizeof idx);
+    q.mat[0] = q.mat[1] = mat;
+    PF_CHECK(pf_scene_add_mesh(scene, &q) == PF_OK);
+    pf_light_t l = { 0 };
+    l.type = PF_LIGHT_POINT;
+    l.pos = pf_v3(0.2f, 1.0f, 0.1f);
+    l.intensity = pf_v3s(2.0f);
+    PF_CHECK(pf_scene_add_light(scene, &l) == PF_OK);
+    scene->camera = (pf_camera_desc_t){ { 0, 2, 2.5f }, { 0, 0, 0 }, { 0, 1, 0 }, 50.0f };
+    scene->has_camera = 1;
+    pf_error_t err;
+    PF_CHECK(pf_scene_finalize(scene, &err) == PF_OK);
+    return scene;
+}
+
+/* The photon pass's skips (each logged when it happens): they must skip only
+ * work that contributes exactly nothing, so the images are bit-identical with
+ * and without the skipped work. */
+static void s_test_skips(void)
+{
+    /* Final gather: a plane under a point light has no diffuse-to-diffuse
+     * transport; the pass says so, computes no irradiance, and the image with
+     * the gather left out equals the one with 16 gather rays. */
+    pf_scene_t *plane = s_plane_scene();
+    pf_settings_t s = plane->settings;
+    s.width = s.height = 48;
+    s.spp = 4;
+    s.photons = 20000;
+    s.caustic_photons = 20000;
+    s.gather = 16;
+    pf_error_t err;
+    pf_accel_t *accel = pf_accel_create(plane, &err);
+    pf_lights_t *lights = pf_lights_build(plane);
+    pf_photon_maps_t maps;
+    pf_photon_stats_t st;
+    PF_CHECK(accel && lights && pf_photon_pass(plane, accel, lights, &s, &maps, &st) == PF_OK);
+    CHECK(st.gather_skipped && st.indirect_stored == 0 && pf_kdtree_size(maps.irradiance) == 0,
+          "plane: gather not skipped (indirect photons %llu, irradiance points %zu)",
+          (unsigned long long)st.indirect_stored, pf_kdtree_size(maps.irradiance));
+    CHECK(st.global_stored > 2000, "plane: only %llu global photons stored", (unsigned long long)st.global_stored);
+    pf_settings_t skipped = s;
+    pf_photon_skip_gather(&st, &skipped);
+    CHECK(skipped.gather == 0, "pf_photon_skip_gather left gather at %d", skipped.gather);
+    pf_image_t with, without;
+    pf_render_ctx_t ctx;
+    pf_render_ctx_init(&ctx, plane, accel, lights, &maps, &s);
+    PF_CHECK(pf_image_alloc(&with, s.width, s.height) == PF_OK);
+    pf_render_image(&ctx, &with, 2, 16, NULL, NULL);
+    pf_render_ctx_init(&ctx, plane, accel, lights, &maps, &skipped);
+    PF_CHECK(pf_image_alloc(&without, s.width, s.height) == PF_OK);
+    pf_render_image(&ctx, &without, 2, 16, NULL, NULL);
+    size_t bytes = (size_t)s.width * (size_t)s.height * 3 * sizeof(float);
+    CHECK(memcmp(with.rgb, without.rgb, bytes) == 0, "plane: the image changes when the final gather is skipped");
+    double sum = 0.0;
+    for (size_t k = 0; k < (size_t)s.width * (size_t)s.height * 3; k++)
+        sum += with.rgb[k];
+    CHECK(sum > 0.0, "plane: the image is black");
+    pf_image_free(&with);
+    pf_image_free(&without);
+    pf_photon_maps_free(&maps);
+    pf_lights_destroy(&lights);
+    pf_accel_destroy(&accel);
+    pf_scene_destroy(&plane);
+
+    /* The Cornell box has diffuse-to-diffuse light (no skip) but no mirror or
+     * glass: no caustic map, and the image with caustic photons asked for
+     * equals the one without. */
+    pf_scene_t *box = pf_scene_load("scenes/cornell-box/scene.json", &err);
+    CHECK(box != NULL, "load: %s", err.msg);
+    if (!box)
+        return;
+    s = box->settings;
+    s.width = s.height = 32;
+    s.spp = 1;
+    s.photons = 20000;
+    s.caustic_photons = 20000;
+    s.gather = 4;
+    pf_image_t a, b;
+    pf_photon_maps_t ma, mb;
+    s_render(box, &s, 2, 16, &a, &ma);
+    CHECK(pf_kdtree_size(ma.caustic) == 0 && pf_kdtree_size(ma.irradiance) > 0,
+          "cornell-box: caustic photons %zu (want 0), irradiance points %zu (want > 0)", pf_kdtree_size(ma.caustic),
+          pf_kdtree_size(ma.irradiance));
+    s.caustic_photons = 0;
+    s_render(box, &s, 2, 16, &b, &mb);
+    CHECK(memcmp(a.rgb, b.rgb, (size_t)s.width * (size_t)s.height * 3 * sizeof(float)) == 0,
+          "cornell-box: the image changes with caustic photons asked for");
+    pf_image_free(&a);
+    pf_image_free(&b);
+    pf_photon_maps_free(&ma);
+    pf_photon_maps_free(&mb);
+    pf_scene_destroy(&box);
+}
+
 static void s_accuracy(const char *scene_path, const char *ref_path, double max_relmse, double max_lum_dev)
 {
     pf_error_t err = { { 0 } };
@@ -270,8 +381,10 @@ int main(int argc, char **argv)
     int all = !strcmp(what, "all");
     if (all || !strcmp(what, "furnace"))
         s_test_furnace();
-    if (all || !strcmp(what, "determinism"))
+    if (all || !strcmp(what, "determinism")) {
         s_test_determinism();
+        s_test_skips();
+    }
     if (all || !strcmp(what, "accuracy")) {
         /* Measured here: 0.0024 / 0.9935 and 0.0023 / 1.0030. */
         s_accuracy("scenes/cornell-box/scene.json", "tests/data/references/cornell-box-128.pfm", 0.0035, 0.015);
