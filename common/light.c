@@ -19,6 +19,11 @@ typedef struct s_entry {
     uint32_t mesh, tri; /* area */
     uint32_t light;     /* point or spot */
     float area;
+    /* A point light outside the scene's bounding sphere emits photons only
+     * into the cone that holds the sphere (cos_max > -1; axis towards the
+     * centre): the others would leave the scene unseen. */
+    pf_vec3 axis;
+    float cos_max;
 } s_entry;
 
 struct pf_lights {
@@ -63,6 +68,26 @@ static double s_light_power(const pf_light_t *l)
     return 2.0 * PF_PI * lum * sum;
 }
 
+/* Points a point light's emission at the scene when it lies outside its
+ * bounding sphere (see s_entry). */
+static void s_aim_at_scene(const pf_scene_t *scene, s_entry *e)
+{
+    const pf_light_t *l = &scene->lights[e->light];
+    if (l->type != PF_LIGHT_POINT)
+        return;
+    pf_vec3 lo, hi;
+    pf_scene_geometry_bounds(scene, &lo, &hi);
+    if (!(lo.x <= hi.x))
+        return; /* no geometry */
+    pf_vec3 c = pf_scale(pf_add(lo, hi), 0.5f), to = pf_sub(c, l->pos);
+    /* Widened for the rounding of the bounds and of the cone's sampling. */
+    float r = 0.5f * pf_len(pf_sub(hi, lo)) * 1.01f + 1e-6f, d = pf_len(to);
+    if (!(d > 1.5f * r) || !isfinite(d))
+        return; /* inside or close: the cone would be most of the sphere anyway */
+    e->axis = pf_scale(to, 1.0f / d);
+    e->cos_max = sqrtf(1.0f - (r / d) * (r / d));
+}
+
 pf_lights_t *pf_lights_build(const pf_scene_t *scene)
 {
     pf_lights_t *self = calloc(1, sizeof *self);
@@ -100,7 +125,8 @@ pf_lights_t *pf_lights_build(const pf_scene_t *scene)
         double p = s_light_power(&scene->lights[l]);
         if (!(p > 0.0))
             continue;
-        self->entries[self->n] = (s_entry){ .kind = S_POINT, .light = (uint32_t)l };
+        self->entries[self->n] = (s_entry){ .kind = S_POINT, .light = (uint32_t)l, .cos_max = -1.0f };
+        s_aim_at_scene(scene, &self->entries[self->n]);
         self->cdf[self->n++] = acc;
         acc += p;
     }
@@ -219,6 +245,12 @@ int pf_lights_emit(const pf_lights_t *self, const pf_scene_t *scene, const float
     const pf_light_t *l = &scene->lights[e->light];
     out->perr = pf_v3s(0.0f);
     out->n = pf_v3s(0.0f);
+    if (l->type == PF_LIGHT_POINT && e->cos_max > -1.0f) {
+        /* I / (pdf_dir pmf), pdf_dir = 1 / solid angle of the cone. */
+        out->ray = (pf_ray_t){ l->pos, pf_to_world(pf_sample_cone(u[3], u[4], e->cos_max), e->axis) };
+        out->flux = pf_scale(l->intensity, 2.0f * PF_PI * (1.0f - e->cos_max) / (float)pmf);
+        return 1;
+    }
     if (l->type == PF_LIGHT_POINT) {
         out->ray = (pf_ray_t){ l->pos, pf_sample_sphere(u[3], u[4]) };
         out->flux = pf_scale(l->intensity, 4.0f * PF_PI / (float)pmf);

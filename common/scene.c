@@ -137,6 +137,18 @@ static int s_in_range(pf_vec3 v)
 
 void pf_scene_bounds(const pf_scene_t *self, pf_vec3 *lo, pf_vec3 *hi)
 {
+    pf_vec3 a, b;
+    pf_scene_geometry_bounds(self, &a, &b);
+    for (size_t l = 0; l < self->nlights; l++) {
+        a = pf_vmin(a, self->lights[l].pos);
+        b = pf_vmax(b, self->lights[l].pos);
+    }
+    *lo = a;
+    *hi = b;
+}
+
+void pf_scene_geometry_bounds(const pf_scene_t *self, pf_vec3 *lo, pf_vec3 *hi)
+{
     pf_vec3 a = pf_v3s(FLT_MAX), b = pf_v3s(-FLT_MAX);
     for (size_t m = 0; m < self->nmeshes; m++) {
         const pf_mesh_t *mesh = &self->meshes[m];
@@ -154,10 +166,6 @@ void pf_scene_bounds(const pf_scene_t *self, pf_vec3 *lo, pf_vec3 *hi)
         const pf_sphere_t *sp = &self->spheres[s];
         a = pf_vmin(a, pf_sub(sp->center, pf_v3s(sp->radius)));
         b = pf_vmax(b, pf_add(sp->center, pf_v3s(sp->radius)));
-    }
-    for (size_t l = 0; l < self->nlights; l++) {
-        a = pf_vmin(a, self->lights[l].pos);
-        b = pf_vmax(b, self->lights[l].pos);
     }
     *lo = a;
     *hi = b;

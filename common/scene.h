@@ -128,8 +128,11 @@ pf_material_t pf_material_default(const char *name);
  * geometry if none was given. 0 or a status with err filled. */
 int pf_scene_finalize(pf_scene_t *self, pf_error_t *err);
 
-/* World-space bounds of all geometry. */
+/* World-space bounds of all geometry and of the point and spot lights. */
 void pf_scene_bounds(const pf_scene_t *self, pf_vec3 *lo, pf_vec3 *hi);
+/* The bounds of the geometry alone (meshes and spheres, not the lights);
+ * lo > hi when there is none. */
+void pf_scene_geometry_bounds(const pf_scene_t *self, pf_vec3 *lo, pf_vec3 *hi);
 
 /* Loads a scene by extension: .json (scene format), .obj (model alone with its
  * .mtl), .ply (mesh alone). Finalized on success. NULL with err filled on failure. */

@@ -436,6 +436,69 @@ static void s_test_point_light(void)
     pf_scene_destroy(&sc);
 }
 
+/* A point light far outside a small scene emits only towards it: every
+ * photon's ray passes the scene's bounding sphere, and the flux reaching the
+ * quad equals the integral of I cos / d^2 over it (unbiased: the photons it
+ * no longer sends would have missed). */
+static void s_test_point_light_far(void)
+{
+    pf_scene_t *sc = pf_scene_create();
+    int fm = s_add_material(sc, pf_v3s(0.5f), pf_v3s(0.0f));
+    s_add_quad(sc, pf_v3(-0.5f, 0, 0.5f), pf_v3(1, 0, 0), pf_v3(0, 0, -1), fm, NULL);
+    pf_light_t l;
+    memset(&l, 0, sizeof l);
+    l.type = PF_LIGHT_POINT;
+    l.pos = pf_v3(3.0f, 20.0f, -2.0f);
+    l.intensity = pf_v3s(5.0f);
+    pf_scene_add_light(sc, &l);
+    s_finalize(sc);
+    pf_lights_t *lt = s_build(sc);
+    /* The flux on the quad, by a fine midpoint rule. */
+    double want = 0.0;
+    const int g = 400;
+    for (int i = 0; i < g; i++)
+        for (int j = 0; j < g; j++) {
+            double x = -0.5 + (i + 0.5) / g, z = -0.5 + (j + 0.5) / g;
+            double dx = l.pos.x - x, dy = l.pos.y, dz = l.pos.z - z, d2 = dx * dx + dy * dy + dz * dz;
+            want += 5.0 * (dy / sqrt(d2)) / d2 / ((double)g * g);
+        }
+    const long n = 200000;
+    long off_scene = 0, hits = 0;
+    s_stat flux = { 0 };
+    for (long i = 0; i < n; i++) {
+        float u[5];
+        s_uniforms(503, (uint64_t)i, u, 5);
+        pf_emission_t e;
+        if (!pf_lights_emit(lt, sc, u, &e)) {
+            off_scene++;
+            continue;
+        }
+        /* Distance from the scene's centre (0, 0, 0) to the ray's line. */
+        pf_vec3 to = pf_neg(e.ray.o);
+        float along = pf_dot(to, e.ray.d);
+        pf_vec3 closest = pf_sub(to, pf_scale(e.ray.d, along));
+        if (!(along > 0.0f) || pf_len(closest) > 0.7072f * 1.02f)
+            off_scene++;
+        double got = 0.0;
+        if (e.ray.d.y < 0.0f) {
+            float t = -e.ray.o.y / e.ray.d.y;
+            pf_vec3 p = pf_add(e.ray.o, pf_scale(e.ray.d, t));
+            if (fabsf(p.x) <= 0.5f && fabsf(p.z) <= 0.5f) {
+                got = e.flux.x;
+                hits++;
+            }
+        }
+        s_stat_add(&flux, got);
+    }
+    CHECK(off_scene == 0, "%ld of %ld far point-light photons miss the scene's bounding sphere", off_scene, n);
+    CHECK(hits > n / 4, "only %ld of %ld far point-light photons hit the quad: emission is not aimed", hits, n);
+    CHECK(fabs(flux.mean - want) < 5.0 * s_stat_se(&flux),
+          "far point light: flux on the quad %.6g per photon, expected %.6g (se %.2g)", flux.mean, want,
+          s_stat_se(&flux));
+    pf_lights_destroy(&lt);
+    pf_scene_destroy(&sc);
+}
+
 /* ---- (c) a spot light ---- */
 
 static void s_test_spot_light(void)
@@ -714,6 +777,7 @@ int main(void)
     s_test_area_light();
     s_test_area_light_vertex_normals();
     s_test_point_light();
+    s_test_point_light_far();
     s_test_spot_light();
     s_test_light_choice();
     s_test_empty();
