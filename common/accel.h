@@ -41,6 +41,11 @@ int pf_accel_occluded(const pf_accel_t *self, const pf_ray_t *ray, float tmax);
  * 256-ulp step along ng (an absolute 2^-16 near zero), which covers Embree's
  * rounding for rays that start on a surface. */
 pf_vec3 pf_offset_origin(pf_vec3 p, pf_vec3 perr, pf_vec3 ng, pf_vec3 w);
+
+/* The least position error the accelerator assumes for any point on its
+ * scene: 2^-21 of the scene's extent. Hits already include it in perr; points
+ * made elsewhere (emission) take the max with it before pf_offset_origin. */
+float pf_accel_eps(const pf_accel_t *self);
 /* A ray leaving the hit point in direction w. */
 static inline pf_ray_t pf_spawn_ray(const pf_hit_t *h, pf_vec3 w)
 {

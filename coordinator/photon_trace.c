@@ -74,9 +74,12 @@ static int s_trace(const s_ctx *c, uint64_t seed, uint64_t index, uint64_t emitt
                 : !pf_lights_emit(c->lights, c->scene, u, &em))
         return 0;
     pf_vec3 power = pf_scale(em.flux, (float)(1.0 / (double)emitted));
+    /* A light whose flux overflows a float would store infinite photons. */
+    if (!pf_is_finite3(power) || power.x < 0.0f || power.y < 0.0f || power.z < 0.0f)
+        return 1;
     pf_ray_t ray = em.ray;
     if (!pf_is_black(em.n))
-        ray.o = pf_offset_origin(ray.o, em.perr, em.n, ray.d);
+        ray.o = pf_offset_origin(ray.o, pf_vmax(em.perr, pf_v3s(pf_accel_eps(c->accel))), em.n, ray.d);
     int specular_only = 1;
     for (int bounce = 0; bounce < c->max_depth; bounce++) {
         pf_hit_t hit;

@@ -94,12 +94,22 @@ static pf_vec3 s_caustic(s_state *st, pf_vec3 p, pf_vec3 nf)
 
 static inline float s_u(s_state *st) { return pf_rng_float(&st->rng); }
 
-/* Shadow test between a hit and a point at distance dist along wi. The ray
- * stops just short of the light point so the emitter itself never occludes. */
+/* Shadow test between a hit and the light point at distance dist along wi.
+ * The ray leaves from the offset origin aimed at the light point itself (the
+ * offset moves the origin off the line from the hit point), and stops short
+ * of it by more than that point's rounding, so the emitter never occludes
+ * itself, at any scale or distance from the origin. */
 static int s_visible(const pf_accel_t *accel, const pf_hit_t *h, pf_vec3 wi, float dist)
 {
+    pf_vec3 target = pf_madd(h->p, wi, dist);
     pf_ray_t r = pf_spawn_ray(h, wi);
-    return !pf_accel_occluded(accel, &r, dist * (1.0f - 1e-4f));
+    pf_vec3 d = pf_sub(target, r.o);
+    float len = pf_len(d);
+    if (!(len > 0.0f))
+        return 1;
+    r.d = pf_scale(d, 1.0f / len);
+    float slack = 0x1p-18f * pf_maxc(pf_vabs(target)) + pf_accel_eps(accel) + 1e-4f * len;
+    return len <= slack || !pf_accel_occluded(accel, &r, len - slack);
 }
 
 /* Direct light at a non-specular hit: light_samples shadow rays. */
