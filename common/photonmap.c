@@ -45,10 +45,13 @@ static size_t s_gather(const pf_kdtree_t *map, pf_vec3 x, int k, float max_r2, p
     return n;
 }
 
-pf_vec3 pf_pm_irradiance(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int k, float max_r2, pf_knn_t *scratch)
+pf_vec3 pf_pm_irradiance(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int k, float max_r2, pf_knn_t *scratch,
+                         float *r2_out)
 {
-    float r2 = 0.0f;
+    float r2 = max_r2;
     size_t cnt = s_gather(map, x, k, max_r2, scratch, &r2);
+    if (r2_out)
+        *r2_out = r2;
     if (cnt == 0 || !(r2 > 0.0f))
         return pf_v3s(0.0f);
     const pf_photon_t *ph = pf_kdtree_photons(map);

@@ -6,6 +6,7 @@
 #define PF_PHOTONMAP_H
 
 #include <stdint.h>
+#include <string.h>
 
 #include "common/kdtree.h"
 
@@ -39,7 +40,17 @@ void pf_photon_maps_free(pf_photon_maps_t *maps);
  * distance to the k-th photon (unbiased for a uniform density); when fewer
  * than k lie within max_r2, all of them over pi max_r2.
  * scratch holds k entries; k <= PF_MAX_K. */
-pf_vec3 pf_pm_irradiance(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int k, float max_r2, pf_knn_t *scratch);
+pf_vec3 pf_pm_irradiance(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int k, float max_r2, pf_knn_t *scratch,
+                         float *r2_out);
+
+/* The radius of the disc an irradiance point's estimate averaged over (its
+ * support), kept in the point's otherwise unused direction field. */
+static inline float pf_irradiance_radius(const pf_photon_t *p)
+{
+    float r;
+    memcpy(&r, &p->dir, sizeof r);
+    return r;
+}
 
 /* The same with a cone filter (Jensen 2001, 7.2.2, k = 1): weight
  * 1 - d / r, normalized by 1 - 2 / 3 over the disc, which sharpens caustics.

@@ -5,7 +5,9 @@
 #include "coordinator/irradiance.h"
 
 #include <omp.h>
+#include <math.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "common/accel.h"
 #include "common/photonmap.h"
@@ -38,8 +40,12 @@ int pf_irradiance_precompute(const pf_kdtree_t *global, int stride, int k, float
                 continue;
             const pf_photon_t *p = &ph[i * (size_t)stride];
             pf_vec3 nrm = pf_oct_decode(p->normal);
-            pf_vec3 e = pf_pm_irradiance(global, pf_photon_pos(p), nrm, k, max_r2, scratch);
-            pts[i] = (pf_photon_t){ { p->pos[0], p->pos[1], p->pos[2] }, { e.x, e.y, e.z }, 0, p->normal };
+            float r2 = 0.0f;
+            pf_vec3 e = pf_pm_irradiance(global, pf_photon_pos(p), nrm, k, max_r2, scratch, &r2);
+            float r = sqrtf(r2);
+            uint32_t support;
+            memcpy(&support, &r, sizeof support);
+            pts[i] = (pf_photon_t){ { p->pos[0], p->pos[1], p->pos[2] }, { e.x, e.y, e.z }, support, p->normal };
         }
         free(scratch);
     }

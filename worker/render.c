@@ -134,15 +134,37 @@ static pf_vec3 s_direct(s_state *st, const pf_hit_t *h, const pf_material_t *m, 
     return pf_scale(sum, 1.0f / (float)n);
 }
 
-/* Irradiance at a gather hit: the nearest precomputed point with an agreeing
- * normal; where none lies within reach, a direct estimate from the global map. */
+/* Irradiance at a gather hit p: that of the nearest precomputed point q with
+ * an agreeing normal, if p lies within q's support (the disc its estimate
+ * averaged over) and q is visible from p; zero otherwise, since then no
+ * photon landed near p on its side of any wall. The visibility ray runs
+ * between p and q both lifted off the surface by their distance d, which
+ * clears a convex surface (a chord's sagitta d^2 / 8R is below d) but not a
+ * wall standing between them: without it the final gather reads light
+ * through walls (the stress suite's thin wall and closed crate). */
 static pf_vec3 s_irradiance(s_state *st, pf_vec3 p, pf_vec3 nf)
 {
-    const pf_photon_maps_t *pm = st->ctx->maps;
+    const pf_render_ctx_t *c = st->ctx;
+    const pf_photon_maps_t *pm = c->maps;
     pf_knn_t near;
-    if (pm->irradiance && pf_kdtree_nearest_normal(pm->irradiance, p, nf, PF_NORMAL_AGREE, pm->irradiance_r2, &near))
-        return pf_photon_power(&pf_kdtree_photons(pm->irradiance)[near.index]);
-    return pf_pm_irradiance(pm->global, p, nf, st->ctx->settings.global_k, pm->global_r2, st->scratch);
+    if (!pm->irradiance || !pf_kdtree_nearest_normal(pm->irradiance, p, nf, PF_NORMAL_AGREE, pm->irradiance_r2, &near))
+        return pf_v3s(0.0f);
+    const pf_photon_t *q = &pf_kdtree_photons(pm->irradiance)[near.index];
+    float r = pf_irradiance_radius(q);
+    if (!(near.d2 <= r * r))
+        return pf_v3s(0.0f);
+    float d = sqrtf(near.d2);
+    if (d > pf_accel_eps(c->accel)) {
+        pf_vec3 a = pf_madd(p, nf, d), b = pf_madd(pf_photon_pos(q), nf, d);
+        pf_vec3 ab = pf_sub(b, a);
+        float len = pf_len(ab);
+        if (len > 0.0f) {
+            pf_ray_t ray = { a, pf_scale(ab, 1.0f / len) };
+            if (pf_accel_occluded(c->accel, &ray, len))
+                return pf_v3s(0.0f);
+        }
+    }
+    return pf_photon_power(q);
 }
 
 /* Radiance leaving the first non-specular surface a gather ray reaches,
