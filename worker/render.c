@@ -251,8 +251,13 @@ static pf_vec3 s_radiance(s_state *st, pf_ray_t ray, int depth, pf_vec3 thr, int
     if (m->type == PF_MAT_DIFFUSE) {
         if (!pf_mat_nonspecular(m))
             return L;
-        if (c->terms & PF_TERM_PHOTONMAP)
-            return pf_add(L, pf_scale(pf_mul(m->kd, s_irradiance(st, h.p, nf)), PF_INV_PI));
+        if (c->terms & PF_TERM_PHOTONMAP) {
+            /* The global map's own estimate (the debugging view), not the
+             * precomputed points, which a scene without indirect light lacks. */
+            pf_vec3 e = pf_pm_irradiance(c->maps->global, h.p, nf, c->settings.global_k, c->maps->global_r2,
+                                         st->scratch, NULL);
+            return pf_add(L, pf_scale(pf_mul(m->kd, e), PF_INV_PI));
+        }
         if (c->terms & PF_TERM_DIRECT)
             L = pf_add(L, s_direct(st, &h, m, nf, ns, wo));
         if (!pf_is_black(m->kd)) {
