@@ -67,6 +67,7 @@ int pf_job_render(const pf_scene_t *scene, const pf_settings_t *settings, unsign
         pf_render_ctx_t ctx;
         pf_render_ctx_init(&ctx, scene, accel, lights, &maps, &s);
         ctx.terms = terms;
+        ctx.dropped = &summary->dropped_samples;
         double t2 = pf_now();
         pf_progress_begin(&bar, "render", show_progress);
         pf_render_image(&ctx, img, threads, 32, pf_progress_tiles, &bar);

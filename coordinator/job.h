@@ -16,6 +16,7 @@ typedef struct pf_job_summary {
     double accel_s, render_s, total_s;
     int threads;
     size_t bad_pixels; /* non-finite or negative channels in the result (must stay 0) */
+    uint64_t dropped_samples; /* camera samples left out for being non-finite or negative (should be 0) */
     pf_settings_t settings; /* the settings rendered with (a time limit chooses some) */
 } pf_job_summary_t;
 

@@ -398,6 +398,9 @@ static int s_cmd_render(int argc, char **argv)
     }
     if (sum.bad_pixels)
         pf_warn("%zu image channels were non-finite or negative", sum.bad_pixels);
+    if (sum.dropped_samples)
+        pf_warn("%" PRIu64 " camera samples were non-finite or negative and left out of their pixels",
+                sum.dropped_samples);
     rc = pf_image_write_png(&img, out, s.exposure, &err);
     if (rc == PF_OK && hdr)
         rc = pf_image_write_pfm(&img, hdr, &err);

@@ -103,6 +103,7 @@ typedef struct s_job {
     s_job_state state;
     s_built *built;      /* once built */
     pf_render_ctx_t ctx; /* once built; read-only for the compute thread */
+    uint64_t dropped;    /* camera samples left out (ctx.dropped points here; atomic) */
     atomic_int cancelled;
     int refs;            /* the worker's current-job pointer and each work item; main thread only */
 } s_job;
@@ -302,6 +303,10 @@ static void s_compute_tile(s_worker *w, s_work *it)
     }
     double us = (pf_now() - t0) * 1e6;
     it->render_us = us >= 4294967295.0 ? UINT32_MAX : (uint32_t)us;
+    uint64_t dropped = __atomic_load_n(&job->dropped, __ATOMIC_RELAXED);
+    if (dropped)
+        s_log(w, PF_LOG_WARN, "job %" PRIu64 ": %" PRIu64 " camera samples so far were non-finite or negative and "
+              "left out of their pixels (last tile at %d,%d)", job->id, dropped, x0, y0);
     it->rendered = !atomic_load(&job->cancelled);
 }
 
@@ -680,6 +685,7 @@ static void s_job_ready(s_worker *w, s_job *j, s_built *b)
     j->built = b;
     pf_render_ctx_init(&j->ctx, b->scene, b->accel, b->lights, &b->maps, &j->desc.settings);
     j->ctx.terms = j->desc.terms;
+    j->ctx.dropped = &j->dropped;
     j->state = S_JOB_READY;
     s_log(w, PF_LOG_INFO, "job %" PRIu64 ": ready (%dx%d, %d spp)", j->id, j->desc.settings.width,
           j->desc.settings.height, j->desc.settings.spp);

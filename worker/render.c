@@ -357,8 +357,12 @@ void pf_render_tile(const pf_render_ctx_t *ctx, int x0, int y0, int w, int h, fl
                 }
                 pf_ray_t ray = pf_camera_ray(&ctx->camera, (float)px + jx, (float)py + jy);
                 pf_vec3 L = s_radiance(st, ray, 0, pf_v3s(1.0f), 1);
-                if (!pf_is_finite3(L) || L.x < 0.0f || L.y < 0.0f || L.z < 0.0f)
-                    continue; /* never let a NaN or negative sample reach the image */
+                if (!pf_is_finite3(L) || L.x < 0.0f || L.y < 0.0f || L.z < 0.0f) {
+                    /* never let a NaN or negative sample reach the image, but say so */
+                    if (ctx->dropped)
+                        __atomic_fetch_add(ctx->dropped, 1, __ATOMIC_RELAXED);
+                    continue;
+                }
                 acc[0] += L.x;
                 acc[1] += L.y;
                 acc[2] += L.z;

@@ -31,6 +31,10 @@ typedef struct pf_render_ctx {
     pf_settings_t settings;
     pf_camera_t camera;
     unsigned terms; /* PF_TERM_* mask */
+    /* Camera samples that came out non-finite or negative are left out of
+     * their pixel (never reach the image) and counted here, atomically;
+     * NULL: not counted. pf_render_ctx_init leaves it NULL. */
+    uint64_t *dropped;
 } pf_render_ctx_t;
 
 /* Fills ctx for a full render of the scene at settings' size. */
