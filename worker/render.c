@@ -313,6 +313,15 @@ static pf_vec3 s_radiance(s_state *st, pf_ray_t ray, int depth, pf_vec3 thr, int
     return pf_add(L, pf_mul(kt, s_radiance(st, pf_spawn_ray(&h, wt), depth + 1, pf_mul(thr, kt), 1)));
 }
 
+pf_vec3 pf_render_gather_ray(const pf_render_ctx_t *ctx, pf_ray_t ray, uint64_t sample)
+{
+    s_state st;
+    st.ctx = ctx;
+    st.rng = pf_rng_make(ctx->settings.seed, PF_STREAM_PIXEL, sample, 0);
+    st.caustic_valid = 0;
+    return s_gather_ray(&st, ray);
+}
+
 void pf_render_ctx_init(pf_render_ctx_t *ctx, const pf_scene_t *scene, const pf_accel_t *accel,
                         const pf_lights_t *lights, const pf_photon_maps_t *maps, const pf_settings_t *settings)
 {

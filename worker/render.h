@@ -37,6 +37,11 @@ typedef struct pf_render_ctx {
     uint64_t *dropped;
 } pf_render_ctx_t;
 
+/* One final-gather ray exactly as the integrator traces it (mirrors and glass
+ * followed, the global map's radiance at the first non-specular hit), with
+ * the random stream of the given sample index. For benchmarks and tests. */
+pf_vec3 pf_render_gather_ray(const pf_render_ctx_t *ctx, pf_ray_t ray, uint64_t sample);
+
 /* Fills ctx for a full render of the scene at settings' size. */
 void pf_render_ctx_init(pf_render_ctx_t *ctx, const pf_scene_t *scene, const pf_accel_t *accel,
                         const pf_lights_t *lights, const pf_photon_maps_t *maps, const pf_settings_t *settings);

@@ -1,0 +1,93 @@
+/* bench_gather.c: the final gather's rays per second against Embree alone.
+ *
+ * Builds a scene's photon maps as a render does (default settings), then
+ * makes the gather rays the integrator would trace: one camera ray through
+ * each pixel centre of a W x W image, and at each diffuse hit `gather`
+ * cosine-distributed rays from the offset hit point. It times, on one thread,
+ * (a) Embree alone: pf_accel_intersect on every ray; (b) the gather as the
+ * renderer does it: pf_render_gather_ray (intersection, mirror/glass
+ * following, the irradiance lookup with its support and visibility checks).
+ * Prints both rates and their ratio (the issue's goal: (b) >= 50 % of (a)).
+ *
+ * usage: bench_gather [scene.json] [W] [gather] */
+#include <stdio.h>
+#include <stdlib.h>
+
+#include "common/accel.h"
+#include "common/bsdf.h"
+#include "common/light.h"
+#include "common/log.h"
+#include "common/rng.h"
+#include "coordinator/photon_trace.h"
+#include "worker/render.h"
+
+int main(int argc, char **argv)
+{
+    const char *path = argc > 1 ? argv[1] : "scenes/cornell-spheres/scene.json";
+    int w = argc > 2 ? atoi(argv[2]) : 128, gather = argc > 3 ? atoi(argv[3]) : 16;
+    pf_log_set_level(PF_LOG_WARN);
+    pf_error_t err;
+    pf_scene_t *scene = pf_scene_load(path, &err);
+    if (!scene) {
+        fprintf(stderr, "%s\n", err.msg);
+        return 1;
+    }
+    pf_settings_t s = scene->settings;
+    s.width = s.height = w;
+    pf_accel_t *accel = pf_accel_create(scene, &err);
+    pf_lights_t *lights = pf_lights_build(scene);
+    pf_photon_maps_t maps;
+    pf_photon_stats_t st;
+    if (!accel || !lights || pf_photon_pass(scene, accel, lights, &s, &maps, &st) != PF_OK ||
+        pf_photon_maps_index(&maps) != PF_OK) {
+        fprintf(stderr, "setup failed\n");
+        return 1;
+    }
+    pf_accel_thread_init();
+    pf_render_ctx_t ctx;
+    pf_render_ctx_init(&ctx, scene, accel, lights, &maps, &s);
+
+    size_t cap = (size_t)w * (size_t)w * (size_t)gather, n = 0;
+    pf_ray_t *rays = malloc(cap * sizeof *rays);
+    pf_rng_t rng = pf_rng_make(7, PF_STREAM_TEST, 0, 0);
+    for (int y = 0; y < w; y++)
+        for (int x = 0; x < w; x++) {
+            pf_ray_t cam = pf_camera_ray(&ctx.camera, (float)x + 0.5f, (float)y + 0.5f);
+            pf_hit_t h;
+            if (!pf_accel_intersect(accel, &cam, INFINITY, &h) || scene->mats[h.mat].type != PF_MAT_DIFFUSE)
+                continue;
+            pf_vec3 wo = pf_neg(cam.d), nf = pf_face_forward(h.ng, wo);
+            pf_vec3 ns = pf_dot(h.ng, nf) > 0.0f ? h.ns : pf_neg(h.ns);
+            for (int g = 0; g < gather; g++) {
+                pf_vec3 wi = pf_to_world(pf_sample_cosine(pf_rng_float(&rng), pf_rng_float(&rng)), ns);
+                if (pf_dot(wi, nf) > 0.0f)
+                    rays[n++] = pf_spawn_ray(&h, wi);
+            }
+        }
+    double best_a = 1e30, best_b = 1e30, sink = 0.0;
+    for (int rep = 0; rep < 3; rep++) {
+        double t0 = pf_now();
+        for (size_t i = 0; i < n; i++) {
+            pf_hit_t h;
+            sink += pf_accel_intersect(accel, &rays[i], INFINITY, &h) ? h.t : 0.0f;
+        }
+        double t1 = pf_now();
+        for (size_t i = 0; i < n; i++)
+            sink += pf_render_gather_ray(&ctx, rays[i], i).x;
+        double t2 = pf_now();
+        best_a = t1 - t0 < best_a ? t1 - t0 : best_a;
+        best_b = t2 - t1 < best_b ? t2 - t1 : best_b;
+    }
+    printf("scene %s, %zu gather rays (%dx%d pixel centres, %d per diffuse hit), %llu global photons, "
+           "%llu irradiance points; one thread, best of 3\n",
+           path, n, w, w, gather, (unsigned long long)st.global_stored, (unsigned long long)st.irradiance_points);
+    printf("embree alone       %8.2f Mrays/s\n", (double)n / best_a / 1e6);
+    printf("gather (renderer)  %8.2f Mrays/s\n", (double)n / best_b / 1e6);
+    printf("ratio              %8.1f %%   (checksum %g)\n", 100.0 * best_a / best_b, sink);
+    free(rays);
+    pf_photon_maps_free(&maps);
+    pf_lights_destroy(&lights);
+    pf_accel_destroy(&accel);
+    pf_scene_destroy(&scene);
+    return 0;
+}
