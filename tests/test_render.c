@@ -31,59 +31,9 @@
 #include "worker/render.h"
 
 #include "check.h"
+#include "scenes_gen.h"
 
 
-/* A geodesic sphere (subdivided octahedron), wound so the face normals point
- * inwards: the emission and the diffuse side face the centre. */
-static void s_inward_sphere(pf_scene_t *scene, int levels, float radius, uint32_t mat)
-{
-    size_t ntris = 8;
-    for (int l = 0; l < levels; l++)
-        ntris *= 4;
-    pf_mesh_t m = { 0 };
-    snprintf(m.name, sizeof m.name, "furnace");
-    m.nverts = 3 * ntris;
-    m.ntris = ntris;
-    m.pos = malloc(m.nverts * sizeof *m.pos);
-    m.idx = malloc(3 * ntris * sizeof *m.idx);
-    m.mat = malloc(ntris * sizeof *m.mat);
-    pf_vec3 *tri = malloc(3 * ntris * sizeof *tri), *next = malloc(3 * ntris * sizeof *next);
-    const pf_vec3 ax[6] = { { 1, 0, 0 }, { -1, 0, 0 }, { 0, 1, 0 }, { 0, -1, 0 }, { 0, 0, 1 }, { 0, 0, -1 } };
-    size_t n = 0;
-    for (int sx = 0; sx < 2; sx++)
-        for (int sy = 2; sy < 4; sy++)
-            for (int sz = 4; sz < 6; sz++) {
-                pf_vec3 a = ax[sx], b = ax[sy], c = ax[sz];
-                /* orient inwards: the normal must point towards the origin */
-                if (pf_dot(pf_cross(pf_sub(b, a), pf_sub(c, a)), a) > 0) {
-                    pf_vec3 t = b;
-                    b = c;
-                    c = t;
-                }
-                tri[n++] = a, tri[n++] = b, tri[n++] = c;
-            }
-    for (int l = 0; l < levels; l++) {
-        size_t k = 0;
-        for (size_t t = 0; t < n; t += 3) {
-            pf_vec3 a = tri[t], b = tri[t + 1], c = tri[t + 2];
-            pf_vec3 ab = pf_norm(pf_add(a, b)), bc = pf_norm(pf_add(b, c)), ca = pf_norm(pf_add(c, a));
-            pf_vec3 out[12] = { a, ab, ca, ab, b, bc, ca, bc, c, ab, bc, ca };
-            memcpy(&next[k], out, sizeof out);
-            k += 12;
-        }
-        memcpy(tri, next, k * sizeof *tri);
-        n = k;
-    }
-    for (size_t i = 0; i < n; i++) {
-        m.pos[i] = pf_scale(tri[i], radius);
-        m.idx[i] = (uint32_t)i;
-    }
-    for (size_t t = 0; t < ntris; t++)
-        m.mat[t] = mat;
-    free(tri);
-    free(next);
-    PF_CHECK(pf_scene_add_mesh(scene, &m) == PF_OK);
-}
 
 static void s_test_furnace(void)
 {
@@ -94,7 +44,7 @@ static void s_test_furnace(void)
         pf_material_t m = pf_material_default("furnace");
         m.kd = pf_v3s(a);
         m.le = pf_v3s(le);
-        s_inward_sphere(scene, 4, 1.0f, (uint32_t)pf_scene_add_material(scene, &m));
+        pf_test_inward_sphere(scene, 4, 1.0f, (uint32_t)pf_scene_add_material(scene, &m));
         scene->camera = (pf_camera_desc_t){ { 0.1f, 0.05f, 0 }, { 1, 0.3f, 0.2f }, { 0, 1, 0 }, 90.0f };
         scene->has_camera = 1;
         pf_error_t err = { { 0 } };
@@ -237,19 +187,7 @@ static pf_scene_t *s_plane_scene(void)
     pf_material_t m = pf_material_default("plane");
     m.kd = pf_v3s(0.7f);
     uint32_t mat = (uint32_t)pf_scene_add_material(scene, &m);
-    pf_mesh_t q = { 0 };
-    snprintf(q.name, sizeof q.name, "plane");
-    q.nverts = 4;
-    q.ntris = 2;
-    q.pos = malloc(4 * sizeof *q.pos);
-    q.idx = malloc(6 * sizeof *q.idx);
-    q.mat = malloc(2 * sizeof *q.mat);
-    const pf_vec3 v[4] = { { -1, 0, -1 }, { 1, 0, -1 }, { 1, 0, 1 }, { -1, 0, 1 } };
-    const uint32_t idx[6] = { 0, 2, 1, 0, 3, 2 };
-    memcpy(q.pos, v, sizeof v);
-    memcpy(q.idx, idx, sizeof idx);
-    q.mat[0] = q.mat[1] = mat;
-    PF_CHECK(pf_scene_add_mesh(scene, &q) == PF_OK);
+    pf_test_quad(scene, pf_v3(-1, 0, -1), pf_v3(0, 0, 2), pf_v3(2, 0, 0), mat); /* normal +y */
     pf_light_t l = { 0 };
     l.type = PF_LIGHT_POINT;
     l.pos = pf_v3(0.2f, 1.0f, 0.1f);

@@ -59,6 +59,7 @@
 #include "worker/render.h"
 
 #include "check.h"
+#include "scenes_gen.h"
 
 /* ------------------------------------------------------------------------ */
 /* Scene building                                                            */
@@ -90,58 +91,6 @@ static pf_material_t s_glass(const char *name, float ior)
     return m;
 }
 
-/* A geodesic sphere (subdivided octahedron) of 8 * 4^levels triangles, wound
- * so the face normals point inwards: emission and the lit side face the
- * centre. (As in test_render.c.) */
-static void s_inward_sphere(pf_scene_t *scene, int levels, float radius, uint32_t mat)
-{
-    size_t ntris = 8;
-    for (int l = 0; l < levels; l++)
-        ntris *= 4;
-    pf_mesh_t m = { 0 };
-    snprintf(m.name, sizeof m.name, "furnace");
-    m.nverts = 3 * ntris;
-    m.ntris = ntris;
-    m.pos = malloc(m.nverts * sizeof *m.pos);
-    m.idx = malloc(3 * ntris * sizeof *m.idx);
-    m.mat = malloc(ntris * sizeof *m.mat);
-    pf_vec3 *tri = malloc(3 * ntris * sizeof *tri), *next = malloc(3 * ntris * sizeof *next);
-    PF_CHECK(m.pos && m.idx && m.mat && tri && next);
-    const pf_vec3 ax[6] = { { 1, 0, 0 }, { -1, 0, 0 }, { 0, 1, 0 }, { 0, -1, 0 }, { 0, 0, 1 }, { 0, 0, -1 } };
-    size_t n = 0;
-    for (int sx = 0; sx < 2; sx++)
-        for (int sy = 2; sy < 4; sy++)
-            for (int sz = 4; sz < 6; sz++) {
-                pf_vec3 a = ax[sx], b = ax[sy], c = ax[sz];
-                if (pf_dot(pf_cross(pf_sub(b, a), pf_sub(c, a)), a) > 0) {
-                    pf_vec3 t = b;
-                    b = c;
-                    c = t;
-                }
-                tri[n++] = a, tri[n++] = b, tri[n++] = c;
-            }
-    for (int l = 0; l < levels; l++) {
-        size_t k = 0;
-        for (size_t t = 0; t < n; t += 3) {
-            pf_vec3 a = tri[t], b = tri[t + 1], c = tri[t + 2];
-            pf_vec3 ab = pf_norm(pf_add(a, b)), bc = pf_norm(pf_add(b, c)), ca = pf_norm(pf_add(c, a));
-            pf_vec3 out[12] = { a, ab, ca, ab, b, bc, ca, bc, c, ab, bc, ca };
-            memcpy(&next[k], out, sizeof out);
-            k += 12;
-        }
-        memcpy(tri, next, k * sizeof *tri);
-        n = k;
-    }
-    for (size_t i = 0; i < n; i++) {
-        m.pos[i] = pf_scale(tri[i], radius);
-        m.idx[i] = (uint32_t)i;
-    }
-    for (size_t t = 0; t < ntris; t++)
-        m.mat[t] = mat;
-    free(tri);
-    free(next);
-    PF_CHECK(pf_scene_add_mesh(scene, &m) == PF_OK);
-}
 
 /* The total area of a scene's triangles with material mat, in double. */
 static double s_area(const pf_scene_t *scene, uint32_t mat)
@@ -162,27 +111,6 @@ static double s_area(const pf_scene_t *scene, uint32_t mat)
     return a;
 }
 
-/* A parallelogram o, o+e1, o+e1+e2, o+e2 as two triangles; its face normal
- * is e1 x e2. */
-static void s_quad(pf_scene_t *scene, pf_vec3 o, pf_vec3 e1, pf_vec3 e2, uint32_t mat)
-{
-    pf_mesh_t m = { 0 };
-    snprintf(m.name, sizeof m.name, "quad");
-    m.nverts = 4;
-    m.ntris = 2;
-    m.pos = malloc(4 * sizeof *m.pos);
-    m.idx = malloc(6 * sizeof *m.idx);
-    m.mat = malloc(2 * sizeof *m.mat);
-    PF_CHECK(m.pos && m.idx && m.mat);
-    m.pos[0] = o;
-    m.pos[1] = pf_add(o, e1);
-    m.pos[2] = pf_add(pf_add(o, e1), e2);
-    m.pos[3] = pf_add(o, e2);
-    const uint32_t idx[6] = { 0, 1, 2, 0, 2, 3 };
-    memcpy(m.idx, idx, sizeof idx);
-    m.mat[0] = m.mat[1] = mat;
-    PF_CHECK(pf_scene_add_mesh(scene, &m) == PF_OK);
-}
 
 /* An axis-aligned box lo..hi as one watertight mesh: 8 shared vertices and
  * 12 triangles, so no ray can slip between two faces. Face normals point out,
@@ -428,7 +356,7 @@ static void s_test_furnace(void)
         float a = cases[i].a, le = 1.0f;
         pf_scene_t *scene = pf_scene_create();
         uint32_t mat = s_material(scene, s_diffuse("furnace", a, le));
-        s_inward_sphere(scene, 4, 1.0f, mat);
+        pf_test_inward_sphere(scene, 4, 1.0f, mat);
         s_camera(scene, pf_v3(0.1f, 0.05f, 0), pf_v3(1, 0.3f, 0.2f), pf_v3(0, 1, 0), 90.0f);
         pf_error_t err = { { 0 } };
         CHECK(pf_scene_finalize(scene, &err) == PF_OK, "finalize: %s", err.msg);
@@ -574,7 +502,7 @@ static void s_test_plane(void)
     pf_scene_t *scene = pf_scene_create();
     uint32_t mat = s_material(scene, s_diffuse("plane", (float)pl.kd, 0.0f));
     float h = (float)pl.half;
-    s_quad(scene, pf_v3(-h, 0, -h), pf_v3(0, 0, 2 * h), pf_v3(2 * h, 0, 0), mat); /* normal +y */
+    pf_test_quad(scene, pf_v3(-h, 0, -h), pf_v3(0, 0, 2 * h), pf_v3(2 * h, 0, 0), mat); /* normal +y */
     s_point_light(scene, pl.light, (float)pl.intensity);
     s_camera(scene, pf_v3(0, 2.5f, 3.5f), pf_v3(0, 0, 0), pf_v3(0, 1, 0), 60.0f);
     pf_error_t err = { { 0 } };
@@ -812,7 +740,7 @@ static void s_grazing(void)
     pf_scene_t *scene = pf_scene_create();
     uint32_t mat = s_material(scene, s_diffuse("ground", (float)pl.kd, 0.0f));
     float h = (float)pl.half;
-    s_quad(scene, pf_v3(-h, 0, -h), pf_v3(0, 0, 2 * h), pf_v3(2 * h, 0, 0), mat);
+    pf_test_quad(scene, pf_v3(-h, 0, -h), pf_v3(0, 0, 2 * h), pf_v3(2 * h, 0, 0), mat);
     s_point_light(scene, pl.light, (float)pl.intensity);
     s_camera(scene, pf_v3(0, 0.05f, 0), pf_v3(0, 0.0f, 5.0f), pf_v3(0, 1, 0), 4.0f);
     pf_error_t err = { { 0 } };
@@ -862,7 +790,7 @@ static void s_glass_furnace(void)
     uint32_t g15 = s_material(scene, s_glass("glass", 1.5f));
     uint32_t g133 = s_material(scene, s_glass("water", 1.33f));
     uint32_t g18 = s_material(scene, s_glass("flint", 1.8f));
-    s_inward_sphere(scene, 4, 1.0f, wall);
+    pf_test_inward_sphere(scene, 4, 1.0f, wall);
     s_sphere(scene, pf_v3(0.35f, -0.15f, -0.35f), 0.22f, g15);
     s_sphere(scene, pf_v3(-0.3f, 0.15f, -0.4f), 0.25f, g133);
     s_sphere(scene, pf_v3(-0.3f, 0.15f, -0.4f), 0.12f, g18);
@@ -892,7 +820,7 @@ static void s_glass_furnace(void)
     pf_scene_t *inside = pf_scene_create();
     wall = s_material(inside, s_diffuse("furnace", a, le));
     g15 = s_material(inside, s_glass("glass", 1.5f));
-    s_inward_sphere(inside, 4, 1.0f, wall);
+    pf_test_inward_sphere(inside, 4, 1.0f, wall);
     s_sphere(inside, pf_v3(0.1f, -0.05f, 0.05f), 0.4f, g15);
     s_camera(inside, pf_v3(0.1f, -0.05f, 0.05f), pf_v3(0.1f, 0.2f, -1.0f), pf_v3(0, 1, 0), 80.0f);
     CHECK(pf_scene_finalize(inside, &err) == PF_OK, "finalize: %s", err.msg);
@@ -926,7 +854,7 @@ static void s_light_in_glass(float offset, int check_image)
     pf_scene_t *scene = pf_scene_create();
     uint32_t wall = s_material(scene, s_diffuse("walls", a, 0.0f));
     uint32_t glass = s_material(scene, s_glass("glass", n));
-    s_inward_sphere(scene, 4, R, wall);
+    pf_test_inward_sphere(scene, 4, R, wall);
     s_sphere(scene, pf_v3(0, 0, 0), r, glass);
     s_point_light(scene, pf_v3(offset, 0, 0), I);
     s_camera(scene, pf_v3(0.1f, 0.5f, 0.6f), pf_v3(-0.2f, -0.3f, -0.9f), pf_v3(0, 1, 0), 80.0f);
@@ -1001,7 +929,7 @@ static void s_thin_wall(float thickness)
     uint32_t light = s_material(scene, s_diffuse("light", 0.0f, 10.0f));
     s_box(scene, pf_v3(-1, 0, 0), pf_v3(0, 1, 1), white, 1);
     s_box(scene, pf_v3(t, 0, 0), pf_v3(1 + t, 1, 1), white, 1);
-    s_quad(scene, pf_v3(-0.7f, 0.99f, 0.3f), pf_v3(0.4f, 0, 0), pf_v3(0, 0, 0.4f), light); /* faces down */
+    pf_test_quad(scene, pf_v3(-0.7f, 0.99f, 0.3f), pf_v3(0.4f, 0, 0), pf_v3(0, 0, 0.4f), light); /* faces down */
     s_point_light(scene, pf_v3(-0.01f, 0.5f, 0.5f), 2.0f);
     pf_error_t err = { { 0 } };
     s_camera(scene, pf_v3(0.9f + t, 0.5f, 0.5f), pf_v3(0, 0.45f, 0.5f), pf_v3(0, 1, 0), 100.0f);
@@ -1046,7 +974,7 @@ static void s_camera_in_box(void)
     uint32_t light = s_material(scene, s_diffuse("light", 0.0f, 10.0f));
     s_box(scene, pf_v3(-2, -1, -2), pf_v3(2, 3, 2), white, 1);   /* a room */
     s_box(scene, pf_v3(-0.3f, 0, -0.3f), pf_v3(0.3f, 0.6f, 0.3f), white, 0); /* a closed crate in it */
-    s_quad(scene, pf_v3(-0.5f, 2.9f, -0.5f), pf_v3(1, 0, 0), pf_v3(0, 0, 1), light);
+    pf_test_quad(scene, pf_v3(-0.5f, 2.9f, -0.5f), pf_v3(1, 0, 0), pf_v3(0, 0, 1), light);
     s_point_light(scene, pf_v3(0.31f, 0.3f, 0), 1.0f); /* 1 cm from the crate's side */
     s_camera(scene, pf_v3(0.05f, 0.3f, 0.1f), pf_v3(0.3f, 0.2f, -0.2f), pf_v3(0, 1, 0), 120.0f);
     pf_error_t err = { { 0 } };
