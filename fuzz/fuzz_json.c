@@ -19,13 +19,6 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
     const char *path = s_fuzz_setup("json", "scene.json", s_fuzz_models, S_FUZZ_NMODELS);
     s_fuzz_put(path, data, size);
-    pf_error_t err;
-    err.msg[0] = '\0';
-    pf_scene_t *scene = pf_scene_load(path, &err);
-    if (scene)
-        s_fuzz_check_blob(scene);
-    else
-        PF_FUZZ_REQUIRE(err.msg[0] != '\0', "a refused scene has no error message");
-    pf_scene_destroy(&scene);
+    s_fuzz_load_checked(path, "a refused scene has no error message");
     return 0;
 }

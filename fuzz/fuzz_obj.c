@@ -20,16 +20,9 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
     const char *path = s_fuzz_setup("obj", "input.obj", s_fuzz_models, S_FUZZ_NMODELS);
     s_fuzz_put(path, data, size);
-    pf_error_t err;
-    err.msg[0] = '\0';
-    pf_scene_t *scene = pf_scene_load(path, &err);
-    if (scene)
-        s_fuzz_check_blob(scene);
-    else
-        PF_FUZZ_REQUIRE(err.msg[0] != '\0', "a refused OBJ has no error message");
-    pf_scene_destroy(&scene);
+    s_fuzz_load_checked(path, "a refused OBJ has no error message");
 
-    scene = pf_scene_create();
+    pf_scene_t *scene = pf_scene_create();
     PF_FUZZ_REQUIRE(scene != NULL, "out of memory");
     pf_material_t m = pf_material_default("override");
     int mi = pf_scene_add_material(scene, &m);
@@ -38,6 +31,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     xf.m[0][0] = -2.0f; /* mirror x and stretch it */
     xf.m[1][2] = 0.5f;  /* shear */
     xf.m[2][3] = 3.0f;  /* translate */
+    pf_error_t err;
     err.msg[0] = '\0';
     int rc = pf_obj_load(scene, path, &xf, mi, &err);
     PF_FUZZ_REQUIRE(rc <= 0, "pf_obj_load returned %d", rc);

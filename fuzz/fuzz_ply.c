@@ -17,22 +17,16 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
     const char *path = s_fuzz_setup("ply", "input.ply", NULL, 0);
     s_fuzz_put(path, data, size);
-    pf_error_t err;
-    err.msg[0] = '\0';
-    pf_scene_t *scene = pf_scene_load(path, &err);
-    if (scene)
-        s_fuzz_check_blob(scene);
-    else
-        PF_FUZZ_REQUIRE(err.msg[0] != '\0', "a refused PLY has no error message");
-    pf_scene_destroy(&scene);
+    s_fuzz_load_checked(path, "a refused PLY has no error message");
 
-    scene = pf_scene_create();
+    pf_scene_t *scene = pf_scene_create();
     PF_FUZZ_REQUIRE(scene != NULL, "out of memory");
     pf_material_t m = pf_material_default("default");
     PF_FUZZ_REQUIRE(pf_scene_add_material(scene, &m) == 0, "out of memory");
     pf_xform_t xf = pf_xform_identity();
     xf.m[1][1] = -1.0f;
     xf.m[0][3] = 1.0f;
+    pf_error_t err;
     err.msg[0] = '\0';
     int rc = pf_ply_load(scene, path, &xf, 0, &err);
     PF_FUZZ_REQUIRE(rc <= 0, "pf_ply_load returned %d", rc);

@@ -139,4 +139,19 @@ PF_FUZZ_UNUSED static void s_fuzz_check_blob(const pf_scene_t *scene)
     pf_buf_free(&b);
 }
 
+/* Loads the scene file at path through pf_scene_load (what the renderer
+ * does): a scene that loads must survive the blob round trip; one refused
+ * must say why. what names the format in the oracle's message. */
+PF_FUZZ_UNUSED static void s_fuzz_load_checked(const char *path, const char *what)
+{
+    pf_error_t err;
+    err.msg[0] = '\0';
+    pf_scene_t *scene = pf_scene_load(path, &err);
+    if (scene)
+        s_fuzz_check_blob(scene);
+    else
+        PF_FUZZ_REQUIRE(err.msg[0] != '\0', what);
+    pf_scene_destroy(&scene);
+}
+
 #endif
