@@ -273,8 +273,15 @@ int pf_photon_pass(const pf_scene_t *scene, const pf_accel_t *accel, const pf_li
         maps->irradiance = none ? pf_kdtree_build(&none, 0) : NULL;
         rc = maps->irradiance ? PF_OK : PF_ENOMEM;
     } else {
-        rc = pf_irradiance_precompute(maps->global, settings->irradiance_stride, settings->global_k,
-                                      maps->global_r2, threads, &maps->irradiance);
+        /* More than PF_IRRADIANCE_MAX_POINTS points add time and memory but
+         * no visible detail (the lookup is piecewise constant over them
+         * anyway), so large maps take every stride-th photon with a wider
+         * stride. */
+        size_t stride = settings->irradiance_stride > 0 ? (size_t)settings->irradiance_stride : 1;
+        if (gn / stride > PF_IRRADIANCE_MAX_POINTS)
+            stride = (gn + PF_IRRADIANCE_MAX_POINTS - 1) / PF_IRRADIANCE_MAX_POINTS;
+        rc = pf_irradiance_precompute(maps->global, (int)stride, settings->global_k, maps->global_r2, threads,
+                                      &maps->irradiance);
     }
     stats->irradiance_s = pf_now() - t2;
     if (rc != PF_OK) {

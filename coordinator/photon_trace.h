@@ -8,6 +8,9 @@
 #include "common/photonmap.h"
 #include "common/scene.h"
 
+/* The most irradiance points one map gets (see pf_photon_pass). */
+#define PF_IRRADIANCE_MAX_POINTS ((size_t)1000000)
+
 typedef struct pf_photon_stats {
     uint64_t global_stored, caustic_stored, irradiance_points;
     uint64_t rejected;          /* photons dropped for non-finite or negative power */
