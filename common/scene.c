@@ -171,6 +171,32 @@ void pf_scene_geometry_bounds(const pf_scene_t *self, pf_vec3 *lo, pf_vec3 *hi)
     *hi = b;
 }
 
+/* A shading normal made unit length, or zero when it has no direction (zero
+ * or not finite). It must come out unit even when its squared length
+ * underflows or overflows a float (components below ~1e-19 or above ~1e19):
+ * (0, 1.5e-39, 4e-23) used to become (0, 4e-17, 1.057), which finalizing
+ * again moves, so the scene blob of such a scene changed on every trip (the
+ * blob reader keeps a normal's bits only when it is unit; sceneblob.c), and
+ * (0, 6e32, 1) used to become zero. Such a normal is first divided by its
+ * largest magnitude, which leaves a squared length in [1, 3]; the division,
+ * not a multiplication by the reciprocal, because that overflows for a
+ * subnormal magnitude. Every other normal takes the direct path, bit for bit
+ * as before. */
+static pf_vec3 s_unit_normal(pf_vec3 n)
+{
+    if (!pf_is_finite3(n))
+        return pf_v3(0, 0, 0);
+    float l2 = pf_len2(n);
+    if (!(l2 >= FLT_MIN && l2 <= FLT_MAX)) {
+        float m = pf_maxc(pf_vabs(n));
+        if (!(m > 0.0f))
+            return pf_v3(0, 0, 0);
+        n = pf_v3(n.x / m, n.y / m, n.z / m);
+        l2 = pf_len2(n);
+    }
+    return pf_scale(n, 1.0f / sqrtf(l2));
+}
+
 static int s_mat_finite(const pf_material_t *m)
 {
     return pf_is_finite3(m->kd) && pf_is_finite3(m->ks) && pf_is_finite3(m->kt) && pf_is_finite3(m->le) &&
@@ -239,9 +265,7 @@ int pf_scene_finalize(pf_scene_t *self, pf_error_t *err)
         }
         if (mesh->nrm) {
             for (size_t v = 0; v < mesh->nverts; v++) {
-                pf_vec3 n = mesh->nrm[v];
-                float l = pf_len(n);
-                mesh->nrm[v] = (l > 0.0f && isfinite(l)) ? pf_scale(n, 1.0f / l) : pf_v3(0, 0, 0);
+                mesh->nrm[v] = s_unit_normal(mesh->nrm[v]);
             }
         }
         dropped += s_drop_degenerate(mesh);
