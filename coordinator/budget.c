@@ -80,8 +80,9 @@ void pf_budget_plan_spp(pf_budget_t *b, const pf_scene_t *scene, const pf_accel_
     /* Blocks of S_PROBE_BLOCK^2 pixels at S_PROBE_SPP samples, as the real
      * render meets them (neighbouring pixels share caches, a pixel's samples
      * share its caustic estimate); single scattered samples cost half again
-     * as much per sample and made the plan leave a third of the time unused. */
-    enum { S_PROBE_BLOCK = 8, S_PROBE_SPP = 2 };
+     * as much per sample and made the plan leave a third of the time unused,
+     * and 2 samples a pixel still a third at 120 s (spp 44). */
+    enum { S_PROBE_BLOCK = 8, S_PROBE_SPP = 8 };
     pf_settings_t probe = *s;
     probe.spp = S_PROBE_SPP;
     pf_render_ctx_t ctx;

@@ -11,7 +11,7 @@
  *      four times the photons lower relMSE by 9 %, four times the camera
  *      samples by 34 %), hence the small share.
  *   2. Samples. With the maps built, a probe renders PF_BUDGET_PROBE_PIXELS
- *      pixels in 8 x 8 blocks spread over the image, 2 samples each, which gives the
+ *      pixels in 8 x 8 blocks spread over the image, 8 samples each, which gives the
  *      thread-seconds per camera sample for this scene and view; spp is the
  *      number of samples per pixel that fills the time left (less a reserve
  *      for writing the image and a safety margin) on all the threads that
