@@ -978,6 +978,42 @@ out:
     s_coord_close(&c);
 }
 
+/* Run B2: an --exit-on-bye worker whose coordinator goes away without a
+ * goodbye (it was stopped or cut off when the BYE went out) tries to reach
+ * it once more, then exits 0 instead of waiting forever; before any
+ * coordinator has welcomed it, the same worker keeps trying. */
+static void s_run_gone(const char *exe)
+{
+    int fails = s_failed;
+    s_coord_t c;
+    if (s_coord_open(&c, NULL)) {
+        CHECK(0, "cannot bind the test coordinator");
+        return;
+    }
+    const char *args[] = { "--connect", c.endpoint, "--threads", "1", "--exit-on-bye", "-v", NULL };
+    s_start_worker(exe, args);
+    pf_msg_t m;
+    if (!s_expect(&c, PF_MSG_HELLO, 15, &m, "gone run"))
+        goto out;
+    /* Not welcomed: after the 5 s HELLO timeout it says HELLO again. */
+    c.heartbeats_on = 0;
+    if (!s_expect(&c, PF_MSG_HELLO, 10, &m, "a second HELLO before any WELCOME"))
+        goto out;
+    s_send_welcome(&c, 1);
+    CHECK(s_quiet(&c, 0.5, &m), "idle worker sent %s", pf_msg_type_name(m.type));
+    /* Now the coordinator is gone: silent, and deaf to the next HELLO. */
+    double t0 = pf_now();
+    if (!s_expect(&c, PF_MSG_HELLO, 10, &m, "a HELLO after the coordinator went silent"))
+        goto out;
+    int code = s_wait_worker(10);
+    double dt = pf_now() - t0;
+    CHECK(code == 0, "--exit-on-bye worker whose coordinator is gone: exit code %d after %.1f s", code, dt);
+out:
+    s_kill_child();
+    s_end_run("gone", fails);
+    s_coord_close(&c);
+}
+
 /* Run C: REFUSE ends the worker with exit code 3 and the reason. */
 static void s_run_refuse(const char *exe)
 {
@@ -1112,12 +1148,13 @@ int main(int argc, char **argv)
         }
         const char *exe = argv[2];
         signal(SIGALRM, s_on_alarm);
-        alarm(110);
+        alarm(140);
         pf_log_set_level(PF_LOG_WARN);
         s_run_usage(exe);
         s_run_refuse(exe);
         s_run_curve(exe);
         s_run_reconnect(exe);
+        s_run_gone(exe);
         s_fixture_t fx;
         if (s_fixture_make(&fx) == 0)
             s_run_render(exe, &fx);

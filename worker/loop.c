@@ -163,6 +163,7 @@ typedef struct s_worker {
     double last_tick;    /* the last pass of the main loop */
     uint32_t hb_ms;
     double backoff_s;
+    int served; /* a coordinator has welcomed this worker at least once */
     double reconnect_at;
     s_out *out, *out_tail;
     pf_buf_t enc;
@@ -1093,6 +1094,7 @@ static void s_on_message(s_worker *w, const uint8_t *frame, size_t len)
         switch (m.type) {
         case PF_MSG_WELCOME:
             w->conn = S_ONLINE;
+            w->served = 1;
             w->hb_ms = m.u.welcome.heartbeat_ms ? m.u.welcome.heartbeat_ms : 1000;
             w->backoff_s = S_BACKOFF_MIN_S;
             w->last_hb = 0; /* a first heartbeat right away */
@@ -1191,7 +1193,16 @@ static void s_timers(s_worker *w)
     if (w->conn == S_HELLO) {
         if (!w->hello_sent)
             s_send_hello(w);
-        if (now - w->opened > S_HELLO_TIMEOUT_S)
+        if (now - w->opened > S_HELLO_TIMEOUT_S && w->opts->exit_on_bye && w->served) {
+            /* A one-job worker whose coordinator went away while it could
+             * not hear the goodbye (stopped, cut off) would otherwise wait
+             * for it forever. */
+            s_log(w, PF_LOG_INFO, "the coordinator this worker served is gone (no WELCOME within 5 s); "
+                  "--exit-on-bye: exiting");
+            s_job_drop(w, "coordinator gone");
+            w->finished = 1;
+            w->exit_code = PF_WORKER_EXIT_OK;
+        } else if (now - w->opened > S_HELLO_TIMEOUT_S)
             s_lost(w, PF_LOG_WARN, w->hello_sent ? "no WELCOME within 5 s"
                                     : (w->curve ? "no connection within 5 s (is the coordinator up, and the CURVE "
                                                   "server key right?)"

@@ -23,7 +23,8 @@ typedef struct pf_worker_opts {
     const char *name;              /* NULL: "hostname:pid" */
     const char *curve_key;         /* own key pair file (public + secret), or NULL: no CURVE */
     const char *curve_server_key;  /* the coordinator's public key file (required with curve_key) */
-    int exit_on_bye;               /* a BYE from the coordinator ends the run (else: reconnect, serve the next) */
+    int exit_on_bye;               /* a BYE from the coordinator ends the run, and so does a coordinator that
+                                      served us and then cannot be reached again (else: reconnect, serve the next) */
     const volatile sig_atomic_t *stop; /* set non-zero (e.g. by a signal handler) to leave; may be NULL */
     int fake_protocol;             /* tests only: announce this protocol version in HELLO (0: the real one) */
 } pf_worker_opts_t;
