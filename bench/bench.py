@@ -66,11 +66,11 @@ GOAL = [(10, 0.003), (30, 0.0011)]
 BUDGETS = [10, 30, 120]
 
 # The base each family departs from. Full: the renderer's defaults (one render
-# is 30-50 s on 2 cores), so every family crosses the default point. Quick:
+# is 15-20 s on 2 cores), so every family crosses the default point. Quick:
 # 128x128 with lighter settings, a second or two per render.
 BASE = {
-    'full': {'size': 512, 'spp': 16, 'gather': 4, 'photons': 400000, 'caustic': 400000},
-    'quick': {'size': 128, 'spp': 4, 'gather': 8, 'photons': 100000, 'caustic': 100000},
+    'full': {'size': 512, 'spp': 36, 'gather': 1, 'filter': 2, 'light': 2, 'photons': 400000, 'caustic': 400000},
+    'quick': {'size': 128, 'spp': 4, 'gather': 2, 'filter': 2, 'light': 2, 'photons': 100000, 'caustic': 100000},
 }
 
 # family: the setting it varies and its values (full, quick). "workers" and
@@ -78,8 +78,10 @@ BASE = {
 FAMILIES = {
     'photons': ('photons', [100000, 400000, 1600000], [25000, 50000, 100000, 200000]),
     'caustic': ('caustic', [100000, 400000, 1600000], [25000, 50000, 100000, 200000]),
-    'gather': ('gather', [1, 4, 16], [2, 4, 8, 16]),
-    'spp': ('spp', [4, 16, 64], [1, 4, 16]),
+    'gather': ('gather', [1, 2, 4], [1, 2, 4]),
+    'filter': ('filter', [0, 1, 2, 3], [0, 2]),
+    'light': ('light', [1, 2, 4], [1, 2]),
+    'spp': ('spp', [9, 36, 144], [1, 4, 16]),
     'workers': ('workers', None, None),
     'time-limit': ('time_limit', [10, 30, 120], [2, 5]),
     'quality': ('quality', ['draft', 'default', 'high'], ['draft', 'default']),
@@ -92,7 +94,7 @@ STUDIES = ['photons', 'triangles', 'resolution', 'threads']
 SWEEP_COLS = ['scene', 'family', 'value', 'size', 'spp', 'gather', 'photons', 'caustic', 'workers', 'threads',
               'wall_s', 'photon_s', 'render_s', 'peak_rss_mb', 'relmse', 'rmse', 'lum_ratio', 'git', 'date',
               'time_limit', 'quality', 'cpu_s', 'load_s', 'triangles', 'global_stored', 'caustic_stored',
-              'reference', 'status', 'note', 'machine', 'load_avg']
+              'reference', 'status', 'note', 'machine', 'load_avg', 'filter', 'light']
 SCALING_COLS = ['study', 'value', 'scene', 'size', 'spp', 'gather', 'photons', 'caustic', 'workers', 'threads',
                 'triangles', 'wall_s', 'load_s', 'accel_other_s', 'trace_s', 'kdtree_s', 'irradiance_s',
                 'photon_s', 'render_s', 'peak_rss_mb', 'global_stored', 'caustic_stored', 'bytes_per_photon',
@@ -254,6 +256,11 @@ LOG_FIELDS = [
     ('settings:', 'photons', r'([0-9]+) global'),
     ('settings:', 'caustic', r'([0-9]+) caustic'),
     ('settings:', 'gather', r'([0-9]+) gather'),
+    ('settings:', 'filter', r'\(filter ([0-9]+)\)'),
+    ('settings:', 'light', r'([0-9]+) light samples'),
+    ('time limit ', 'spp', r'([0-9]+) spp'),
+    ('time limit ', 'photons', r': ([0-9]+) global'),
+    ('time limit ', 'caustic', r'([0-9]+) caustic'),
     ('photon pass:', 'global_stored', r'photon pass: ([0-9]+) global'),
     ('photon pass:', 'caustic_stored', r'([0-9]+) caustic photons'),
     ('photon pass:', 'trace_s', r'trace ' + _NUM + r' s'),
@@ -346,7 +353,8 @@ class Runner:
     def options(pt):
         """The render options of a point (everything but scene and outputs)."""
         opts = ['--size', '%dx%d' % (pt['size'], pt['size'])]
-        for key, opt in (('spp', '--spp'), ('gather', '--gather'), ('photons', '--photons'),
+        for key, opt in (('spp', '--spp'), ('gather', '--gather'), ('filter', '--gather-filter'),
+                         ('light', '--light-samples'), ('photons', '--photons'),
                          ('caustic', '--caustic-photons'), ('threads', '--threads'), ('workers', '--workers'),
                          ('time_limit', '--time-limit'), ('quality', '--quality')):
             if pt.get(key) not in (None, ''):
@@ -365,7 +373,7 @@ class Runner:
         key = (scene_path,) + tuple(opts)
         row = {'git': self.git, 'machine': self.machine,
                'date': datetime.datetime.now(datetime.timezone.utc).strftime('%Y-%m-%dT%H:%M:%SZ')}
-        for k in ('spp', 'gather', 'photons', 'caustic', 'threads', 'time_limit', 'quality'):
+        for k in ('spp', 'gather', 'filter', 'light', 'photons', 'caustic', 'threads', 'time_limit', 'quality'):
             row[k] = pt.get(k, '')
         row['workers'] = pt.get('workers', 0) or 0
         row['size'] = '%dx%d' % (pt['size'], pt['size'])
@@ -397,7 +405,7 @@ class Runner:
             row[k] = lg.get(k, '')
         # The settings the renderer reports are the ones it used (a quality
         # preset or a time limit chooses them itself).
-        for k in ('spp', 'gather', 'photons', 'caustic'):
+        for k in ('spp', 'gather', 'filter', 'light', 'photons', 'caustic'):
             if k in lg:
                 row[k] = lg[k]
         if 'width' in lg and 'height' in lg:
@@ -553,7 +561,7 @@ def scaling_points(study, mode, args, ncpu):
         with open(os.path.join(bunny, 'scene.json')) as fp:
             scene = json.load(fp)
         size = 64
-        base = {'size': size, 'spp': 1, 'gather': 4, 'photons': 100000, 'caustic': 100000, 'threads': args.threads}
+        base = {'size': size, 'spp': 4, 'gather': 1, 'photons': 100000, 'caustic': 100000, 'threads': args.threads}
         for res in ('_res4', '_res3', '_res2', ''):
             for o in scene['objects']:
                 if o.get('type') == 'ply':
@@ -572,14 +580,14 @@ def scaling_points(study, mode, args, ncpu):
     elif study == 'resolution':
         sp = os.path.join(ROOT, 'scenes', 'cornell-spheres', 'scene.json')
         sizes = [64, 128, 256] if quick else [128, 256, 512, 1024]
-        base = ({'spp': 1, 'gather': 4, 'photons': 100000, 'caustic': 100000} if quick else
-                {'spp': 4, 'gather': 8, 'photons': 400000, 'caustic': 400000})
+        base = ({'spp': 4, 'gather': 1, 'photons': 100000, 'caustic': 100000} if quick else
+                {'spp': 16, 'gather': 1, 'photons': 400000, 'caustic': 400000})
         for s in sizes:
             pts.append((str(s), 'cornell-spheres', sp, dict(base, size=s, threads=args.threads), True))
     elif study == 'threads':
         sp = os.path.join(ROOT, 'scenes', 'cornell-spheres', 'scene.json')
-        base = ({'size': 128, 'spp': 4, 'gather': 8, 'photons': 100000, 'caustic': 100000} if quick else
-                {'size': 256, 'spp': 16, 'gather': 16, 'photons': 400000, 'caustic': 400000})
+        base = ({'size': 128, 'spp': 4, 'gather': 1, 'photons': 100000, 'caustic': 100000} if quick else
+                {'size': 256, 'spp': 36, 'gather': 1, 'photons': 400000, 'caustic': 400000})
         t = 1
         counts = []
         while t < ncpu:
@@ -913,8 +921,8 @@ def infer_base(rows, mode):
     common value in the families that do not vary it (so --size and --base
     overrides, and a report rebuilt from the CSV, say what was run)."""
     base = {}
-    for key, fams in (('size', ()), ('spp', ('spp',)), ('gather', ('gather',)), ('photons', ('photons',)),
-                      ('caustic', ('caustic',))):
+    for key, fams in (('size', ()), ('spp', ('spp',)), ('gather', ('gather',)), ('filter', ('filter',)),
+                      ('light', ('light',)), ('photons', ('photons',)), ('caustic', ('caustic',))):
         vals = [r.get(key) for r in rows if r.get('status') == 'ok' and r.get('family') not in fams
                 and r.get('family') not in ('quality', 'time-limit') and r.get(key)]
         if vals:
@@ -977,10 +985,11 @@ def sweep_markdown(rows, mode, image_rel, command):
                 wt = workers_label('t%s' % r['threads'])
             value = fmt_count(r['value']) if r['family'] in ('photons', 'caustic') else r['value']
             trows.append([r['family'], value, r.get('size', ''), r.get('spp', ''), r.get('gather', ''),
-                          fmt_count(r.get('photons')), fmt_count(r.get('caustic')), wt,
+                          r.get('filter', ''), r.get('light', ''), fmt_count(r.get('photons')), fmt_count(r.get('caustic')), wt,
                           fmt_time(r.get('wall_s')), fmt_time(r.get('photon_s')), fmt_time(r.get('render_s')),
                           fmt_mb(r.get('peak_rss_mb'))] + md_status(r))
-        out.append(md_table(['family', 'value', 'size', 'spp', 'gather', 'photons', 'caustic', 'workers×threads',
+        out.append(md_table(['family', 'value', 'size', 'spp', 'gather', 'filter', 'light', 'photons', 'caustic',
+                             'workers×threads',
                              'wall s', 'photons s', 'render s', 'peak RSS MB', 'relMSE', 'RMSE', 'lum. ratio'],
                             trows))
         notes = ['- %s=%s: %s' % (r['family'], r['value'], r['note']) for r in srows if r.get('note')]
@@ -1177,8 +1186,9 @@ def parse_base(s):
     for part in s.split(','):
         k, _, v = part.partition('=')
         k = k.strip()
-        if k not in ('spp', 'gather', 'photons', 'caustic') or not v.strip().isdigit():
-            raise argparse.ArgumentTypeError('expected KEY=N[,KEY=N] with KEY in spp, gather, photons, caustic')
+        if k not in ('spp', 'gather', 'filter', 'light', 'photons', 'caustic') or not v.strip().isdigit():
+            raise argparse.ArgumentTypeError('expected KEY=N[,KEY=N] with KEY in spp, gather, filter, light, '
+                                             'photons, caustic')
         out[k] = int(v)
     return out
 

@@ -66,6 +66,9 @@ typedef struct pf_camera_desc {
     float vfov_deg; /* vertical field of view */
 } pf_camera_desc_t;
 
+/* The largest settings.gather_filter: a (2n+1)^2 window of pixels. */
+#define PF_MAX_GATHER_FILTER 8
+
 /* Render settings: defaults from pf_settings_default(), then the scene file's
  * "render" block, then the command line. */
 typedef struct pf_settings {
@@ -74,6 +77,7 @@ typedef struct pf_settings {
     uint64_t photons;          /* global photons emitted */
     uint64_t caustic_photons;  /* caustic photons emitted */
     int gather;                /* final-gather rays per camera sample at a diffuse hit */
+    int gather_filter;         /* first gathers shared over (2n+1)^2 pixels; 0: none */
     int light_samples;         /* shadow rays per area-light sample at a diffuse hit */
     int max_depth;             /* specular recursion depth (camera side) */
     int photon_max_depth;      /* bounces a photon may make */

@@ -554,6 +554,7 @@ static int s_render(s_ctx_t *c, const cJSON *r)
         { "height", offsetof(pf_settings_t, height), 1, 65536 },
         { "spp", offsetof(pf_settings_t, spp), 1, 1 << 20 },
         { "gather", offsetof(pf_settings_t, gather), 0, 1 << 16 },
+        { "gather_filter", offsetof(pf_settings_t, gather_filter), 0, PF_MAX_GATHER_FILTER },
         { "light_samples", offsetof(pf_settings_t, light_samples), 1, 1 << 16 },
         { "max_depth", offsetof(pf_settings_t, max_depth), 0, 1024 },
         { "photon_max_depth", offsetof(pf_settings_t, photon_max_depth), 1, 100000 },
@@ -562,7 +563,7 @@ static int s_render(s_ctx_t *c, const cJSON *r)
         { "irradiance_stride", offsetof(pf_settings_t, irradiance_stride), 1, 1 << 20 },
     };
     static const char *const keys[] = { "width", "height", "spp", "photons", "caustic_photons", "gather",
-                                        "light_samples", "max_depth", "photon_max_depth", "global_k",
+                                        "gather_filter", "light_samples", "max_depth", "photon_max_depth", "global_k",
                                         "caustic_k", "caustic_radius", "global_radius", "irradiance_stride",
                                         "seed", "exposure", NULL };
     const char *what = "render";

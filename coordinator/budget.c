@@ -18,9 +18,10 @@
 #define S_RESERVE_SHARE 0.03
 #define S_SAFETY 0.85
 
-void pf_budget_init(pf_budget_t *b, double start, double limit_s, int render_threads)
+void pf_budget_init(pf_budget_t *b, double start, double limit_s, int render_threads, int tile)
 {
     memset(b, 0, sizeof *b);
+    b->tile = tile;
     b->limit_s = limit_s;
     b->deadline = start + limit_s;
     b->render_threads = render_threads > 0 ? render_threads : 1;
@@ -90,31 +91,52 @@ void pf_budget_plan_spp(pf_budget_t *b, const pf_scene_t *scene, const pf_accel_
     ctx.terms = terms;
     uint64_t npx = (uint64_t)s->width * (uint64_t)s->height;
     int bx = (s->width + S_PROBE_BLOCK - 1) / S_PROBE_BLOCK, by = (s->height + S_PROBE_BLOCK - 1) / S_PROBE_BLOCK;
-    uint64_t nblocks = (uint64_t)bx * (uint64_t)by;
+    /* A gx x gy lattice of blocks, evenly spaced in both directions, so the
+     * probe sees each part of the view in proportion (spacing them in scan
+     * order put every block in one or two columns of the image: the left
+     * wall alone, and a plan 25 % short of the render's cost). */
     int want = PF_BUDGET_PROBE_PIXELS / (S_PROBE_BLOCK * S_PROBE_BLOCK);
-    int n = nblocks < (uint64_t)want ? (int)nblocks : want;
+    int gx = (int)lround(sqrt((double)want * (double)bx / (double)by));
+    gx = gx < 1 ? 1 : gx > bx ? bx : gx;
+    int gy = want / gx;
+    gy = gy < 1 ? 1 : gy > by ? by : gy;
+    int n = gx * gy;
     if (local_threads < 1)
         local_threads = 1;
-    uint64_t samples = 0;
-    double t0 = pf_now();
-#pragma omp parallel num_threads(local_threads) reduction(+ : samples)
+    pf_tile_cost_t cost = { 0 };
+    double wall0 = pf_now();
+#pragma omp parallel num_threads(local_threads)
     {
         pf_accel_thread_init();
         float px[3 * S_PROBE_BLOCK * S_PROBE_BLOCK];
-        /* Evenly spaced over the image's blocks in scan order, offset by half
-         * a step, so the probe sees each part of the view in proportion. */
+        pf_tile_cost_t mine = { 0 };
 #pragma omp for schedule(dynamic, 1)
         for (int i = 0; i < n; i++) {
-            uint64_t k = ((uint64_t)i * nblocks + nblocks / (2 * (uint64_t)n)) / (uint64_t)n;
-            int x0 = (int)(k % (uint64_t)bx) * S_PROBE_BLOCK, y0 = (int)(k / (uint64_t)bx) * S_PROBE_BLOCK;
+            int x0 = (int)(((2 * (int64_t)(i % gx) + 1) * bx) / (2 * gx)) * S_PROBE_BLOCK;
+            int y0 = (int)(((2 * (int64_t)(i / gx) + 1) * by) / (2 * gy)) * S_PROBE_BLOCK;
             int w = x0 + S_PROBE_BLOCK <= s->width ? S_PROBE_BLOCK : s->width - x0;
             int h = y0 + S_PROBE_BLOCK <= s->height ? S_PROBE_BLOCK : s->height - y0;
-            pf_render_tile(&ctx, x0, y0, w, h, px);
-            samples += (uint64_t)w * (uint64_t)h * S_PROBE_SPP;
+            pf_render_tile_cost(&ctx, x0, y0, w, h, px, &mine);
+        }
+#pragma omp critical
+        {
+            cost.record_s += mine.record_s;
+            cost.render_s += mine.render_s;
+            cost.record_samples += mine.record_samples;
+            cost.samples += mine.samples;
         }
     }
-    double wall = pf_now() - t0;
-    b->sample_s = samples ? wall * (double)local_threads / (double)samples : 0.0;
+    /* A probe block's border of filtered gathers is far larger for its size
+     * than a tile's: the recording is costed per sample recorded and scaled
+     * to the border the render's tiles carry. */
+    double r = (double)s->gather_filter, t = (double)(b->tile > 0 ? b->tile : 32);
+    double border = cost.record_samples ? (t + 2.0 * r) * (t + 2.0 * r) / (t * t) : 0.0;
+    b->sample_s = cost.samples ? cost.render_s / (double)cost.samples : 0.0;
+    if (cost.record_samples)
+        b->sample_s += border * cost.record_s / (double)cost.record_samples;
+    pf_debug("time limit probe: %d blocks, %.3f s wall on %d threads; recording %.3f s for %" PRIu64
+             " samples, rendering %.3f s for %" PRIu64 " samples",
+             n, pf_now() - wall0, local_threads, cost.record_s, cost.record_samples, cost.render_s, cost.samples);
     double left = pf_budget_left(b) - S_RESERVE_S - S_RESERVE_SHARE * b->limit_s;
     double per_spp = (double)npx * b->sample_s / (double)b->render_threads;
     double spp = per_spp > 0.0 ? floor(S_SAFETY * left / per_spp) : 1.0;

@@ -41,11 +41,13 @@ static void s_usage(FILE *f)
             "  -o, --output FILE        PNG output, 8-bit sRGB (default: <scene name>.png)\n"
             "      --hdr FILE           also write linear float PFM\n"
             "      --size WxH           image size (512x512)\n"
-            "      --spp N              camera samples per pixel, stratified when a square (16)\n"
+            "      --spp N              camera samples per pixel, stratified when a square (36)\n"
             "      --photons N          global photons emitted (400000)\n"
             "      --caustic-photons N  caustic photons emitted (400000)\n"
-            "      --gather N           final-gather rays per camera sample at a diffuse point (16)\n"
-            "      --light-samples N    shadow rays per camera sample at a diffuse point (1)\n"
+            "      --gather N           final-gather rays per camera sample at a diffuse point (1)\n"
+            "      --gather-filter R    share first gathers over (2R+1)^2 pixels on the same surface,\n"
+            "                           0..8 (2; 0: every sample gathers for itself)\n"
+            "      --light-samples N    shadow rays per camera sample at a diffuse point (2)\n"
             "      --global-k N         photons per irradiance estimate (100)\n"
             "      --caustic-k N        photons per caustic estimate (80)\n"
             "      --caustic-radius R   max caustic search radius in world units (0: 1%% of the scene)\n"
@@ -53,7 +55,7 @@ static void s_usage(FILE *f)
             "      --threads N          rendering threads (0: all cores)\n"
             "      --seed N             random seed (1); the image depends on nothing else\n"
             "      --exposure STOPS     PNG exposure in stops (0)\n"
-            "      --quality PRESET     draft, default or high: spp, gather rays and photons from the\n"
+            "      --quality PRESET     draft, default or high: spp and photons from the\n"
             "                           benchmark curves (docs/benchmarks.md); other options override\n"
             "      --time-limit SECONDS finish within SECONDS of wall clock (everything included) with the\n"
             "                           lowest error it can: photons and spp chosen by measuring this\n"
@@ -115,21 +117,22 @@ static int s_parse_float(const char *s, float *out)
 }
 
 /* --quality presets, from the time-against-error measurements of the
- * shipped scenes at 512x512 on 2 cores (docs/benchmarks.md): draft is what
- * --time-limit 10 chooses there (about 10 s, relMSE about 0.005), default is
- * the renderer's defaults (about 40 s, 0.0015), high four times the camera
- * samples with 8 gather rays each and 2.5 times the photons (0.001 and
- * below). Options given beside a preset override its values. */
+ * shipped scenes at 512x512 on 2 cores (docs/benchmarks.md): draft is about
+ * what --time-limit 10 chooses there, default is the renderer's defaults,
+ * high four times the camera samples and 2.5 times the photons. All take one
+ * filtered gather ray and two shadow rays per camera sample, which beat more
+ * gather rays per sample at equal time. Options given beside a preset
+ * override its values. */
 typedef struct pf_quality {
     const char *name;
-    int spp, gather;
+    int spp, gather, light_samples, gather_filter;
     uint64_t photons, caustic_photons;
 } pf_quality_t;
 
 static const pf_quality_t s_qualities[] = {
-    { "draft", 9, 4, 150000, 150000 },
-    { "default", 16, 16, 400000, 400000 },
-    { "high", 64, 8, 1000000, 1000000 },
+    { "draft", 12, 1, 2, 2, 200000, 200000 },
+    { "default", 36, 1, 2, 2, 400000, 400000 },
+    { "high", 144, 1, 2, 2, 1000000, 1000000 },
 };
 
 static const pf_quality_t *s_find_quality(const char *name)
@@ -184,7 +187,7 @@ static void s_default_output(const char *scene, char *out, size_t n)
 }
 
 enum {
-    OPT_HDR = 256, OPT_SIZE, OPT_SPP, OPT_PHOTONS, OPT_CPHOTONS, OPT_GATHER, OPT_LSAMPLES, OPT_GK, OPT_CK, OPT_CR,
+    OPT_HDR = 256, OPT_SIZE, OPT_SPP, OPT_PHOTONS, OPT_CPHOTONS, OPT_GATHER, OPT_GFILTER, OPT_LSAMPLES, OPT_GK, OPT_CK, OPT_CR,
     OPT_DEPTH, OPT_THREADS, OPT_SEED, OPT_EXPOSURE, OPT_TERMS, OPT_WORKERS, OPT_BIND, OPT_MINW, OPT_CSECRET,
     OPT_CALLOW, OPT_TILE, OPT_HB, OPT_WATCHDOG, OPT_MAXWAIT, OPT_WEXE, OPT_TLIMIT, OPT_QUALITY,
 };
@@ -203,6 +206,7 @@ static int s_cmd_render(int argc, char **argv)
         { "size", required_argument, 0, OPT_SIZE },      { "spp", required_argument, 0, OPT_SPP },
         { "photons", required_argument, 0, OPT_PHOTONS }, { "caustic-photons", required_argument, 0, OPT_CPHOTONS },
         { "gather", required_argument, 0, OPT_GATHER },  { "light-samples", required_argument, 0, OPT_LSAMPLES },
+        { "gather-filter", required_argument, 0, OPT_GFILTER },
         { "global-k", required_argument, 0, OPT_GK },    { "caustic-k", required_argument, 0, OPT_CK },
         { "caustic-radius", required_argument, 0, OPT_CR }, { "max-depth", required_argument, 0, OPT_DEPTH },
         { "threads", required_argument, 0, OPT_THREADS }, { "seed", required_argument, 0, OPT_SEED },
@@ -218,10 +222,10 @@ static int s_cmd_render(int argc, char **argv)
     };
     /* Command-line settings are applied over the scene's after it loads. */
     struct {
-        int w, h, spp, gather, ls, gk, ck, depth, threads;
+        int w, h, spp, gather, gfilter, ls, gk, ck, depth, threads;
         uint64_t photons, cphotons, seed;
         float cr, exposure;
-        int has_w, has_spp, has_gather, has_ls, has_gk, has_ck, has_depth, has_threads, has_photons, has_cphotons,
+        int has_w, has_spp, has_gather, has_gfilter, has_ls, has_gk, has_ck, has_depth, has_threads, has_photons, has_cphotons,
             has_seed, has_cr, has_exposure;
     } o;
     memset(&o, 0, sizeof o);
@@ -252,6 +256,10 @@ static int s_cmd_render(int argc, char **argv)
         case OPT_PHOTONS: bad = s_parse_u64(optarg, &o.photons) || o.photons > (1ull << 31); o.has_photons = 1; break;
         case OPT_CPHOTONS: bad = s_parse_u64(optarg, &o.cphotons) || o.cphotons > (1ull << 31); o.has_cphotons = 1; break;
         case OPT_GATHER: bad = s_parse_int(optarg, 0, 1 << 16, &o.gather); o.has_gather = 1; break;
+        case OPT_GFILTER:
+            bad = s_parse_int(optarg, 0, PF_MAX_GATHER_FILTER, &o.gfilter);
+            o.has_gfilter = 1;
+            break;
         case OPT_LSAMPLES: bad = s_parse_int(optarg, 1, 1 << 10, &o.ls); o.has_ls = 1; break;
         case OPT_GK: bad = s_parse_int(optarg, 1, 1024, &o.gk); o.has_gk = 1; break;
         case OPT_CK: bad = s_parse_int(optarg, 1, 1024, &o.ck); o.has_ck = 1; break;
@@ -314,17 +322,23 @@ static int s_cmd_render(int argc, char **argv)
     if (quality) {
         s.spp = quality->spp;
         s.gather = quality->gather;
+        s.light_samples = quality->light_samples;
+        s.gather_filter = quality->gather_filter;
         s.photons = quality->photons;
         s.caustic_photons = quality->caustic_photons;
     }
-    if (time_limit > 0 && !o.has_gather)
-        s.gather = PF_BUDGET_GATHER;
+    if (time_limit > 0) {
+        if (!o.has_gather) s.gather = PF_BUDGET_GATHER;
+        if (!o.has_ls) s.light_samples = PF_BUDGET_LIGHT_SAMPLES;
+        if (!o.has_gfilter) s.gather_filter = PF_BUDGET_GATHER_FILTER;
+    }
     if (o.has_w) { s.width = o.w; s.height = o.h; }
     if (o.has_spp) s.spp = o.spp;
     if (o.has_photons) s.photons = o.photons;
     if (o.has_cphotons) s.caustic_photons = o.cphotons;
     if (o.has_gather) s.gather = o.gather;
     if (o.has_ls) s.light_samples = o.ls;
+    if (o.has_gfilter) s.gather_filter = o.gfilter;
     if (o.has_gk) s.global_k = o.gk;
     if (o.has_ck) s.caustic_k = o.ck;
     if (o.has_cr) s.caustic_radius = o.cr;
@@ -347,16 +361,17 @@ static int s_cmd_render(int argc, char **argv)
             render_threads = farm.min_workers * omp_get_num_procs(); /* assumed: remote workers like this machine */
         else
             render_threads = o.has_threads && o.threads > 0 ? o.threads : omp_get_num_procs();
-        pf_budget_init(&budget, t0, time_limit, render_threads);
+        pf_budget_init(&budget, t0, time_limit, render_threads, workers > 0 || farm.bind ? farm.tile_size : 32);
         budget.fix_photons = o.has_photons;
         budget.fix_caustic = o.has_cphotons;
         budget.fix_spp = o.has_spp;
-        pf_info("settings: %dx%d, time limit %.3g s (photons and spp chosen below), %d gather rays, seed %" PRIu64,
-                s.width, s.height, time_limit, s.gather, s.seed);
+        pf_info("settings: %dx%d, time limit %.3g s (photons and spp chosen below), %d gather rays (filter %d), "
+                "%d light samples, seed %" PRIu64,
+                s.width, s.height, time_limit, s.gather, s.gather_filter, s.light_samples, s.seed);
     } else {
         pf_info("settings: %dx%d, %d spp, %" PRIu64 " global + %" PRIu64
-                " caustic photons, %d gather rays, seed %" PRIu64 "%s%s",
-                s.width, s.height, s.spp, s.photons, s.caustic_photons, s.gather, s.seed,
+                " caustic photons, %d gather rays (filter %d), %d light samples, seed %" PRIu64 "%s%s",
+                s.width, s.height, s.spp, s.photons, s.caustic_photons, s.gather, s.gather_filter, s.light_samples, s.seed,
                 quality ? ", quality " : "", quality ? quality->name : "");
     }
 

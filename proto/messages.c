@@ -18,7 +18,7 @@
  *   REFUSE      str reason
  *   HEARTBEAT   u64 progress, u32 tiles_held
  *   JOB         u64 scene_hash, scene_size, maps_hash, maps_size,
- *               settings (80 bytes, below), u32 terms, u32 tile_size
+ *               settings (84 bytes, below), u32 terms, u32 tile_size
  *   BLOB_REQ    u64 hash, u64 offset, u32 credit
  *   BLOB_CHUNK  u64 hash, u64 total, u64 offset, u32 len, len bytes
  *   READY       u32 credit
@@ -151,11 +151,11 @@ int pf_fingerprint_check(const pf_fingerprint_t *worker, const pf_fingerprint_t 
 
 /* ---- the settings field group ----
  *
- * On the wire, in this order (the declaration order of pf_settings_t), 80
+ * On the wire, in this order (the declaration order of pf_settings_t), 84
  * bytes; int fields travel as two's-complement i32:
  *   i32 width, i32 height, i32 spp,
  *   u64 photons, u64 caustic_photons,
- *   i32 gather, i32 light_samples, i32 max_depth, i32 photon_max_depth,
+ *   i32 gather, i32 gather_filter, i32 light_samples, i32 max_depth, i32 photon_max_depth,
  *   i32 global_k, i32 caustic_k,
  *   f32 caustic_radius, f32 global_radius,
  *   i32 irradiance_stride, i32 threads,
@@ -182,6 +182,7 @@ int pf_wr_settings(pf_buf_t *b, const pf_settings_t *s)
     W(pf_wr_u64(b, s->photons));
     W(pf_wr_u64(b, s->caustic_photons));
     W(pf_wr_u32(b, s_u32_from_int(s->gather)));
+    W(pf_wr_u32(b, s_u32_from_int(s->gather_filter)));
     W(pf_wr_u32(b, s_u32_from_int(s->light_samples)));
     W(pf_wr_u32(b, s_u32_from_int(s->max_depth)));
     W(pf_wr_u32(b, s_u32_from_int(s->photon_max_depth)));
@@ -282,6 +283,7 @@ static void s_dec_settings(s_dec_t *d, pf_settings_t *s)
     s->photons = s_u64(d, "settings.photons");
     s->caustic_photons = s_u64(d, "settings.caustic_photons");
     s->gather = s_i32(d, "settings.gather");
+    s->gather_filter = s_i32(d, "settings.gather_filter");
     s->light_samples = s_i32(d, "settings.light_samples");
     s->max_depth = s_i32(d, "settings.max_depth");
     s->photon_max_depth = s_i32(d, "settings.photon_max_depth");
@@ -326,6 +328,7 @@ int pf_settings_check(const pf_settings_t *s, char *why, size_t why_len)
         s_out(why, why_len, "settings.height", s->height, 1, S_MAX_IMAGE_SIDE) ||
         s_out(why, why_len, "settings.spp", s->spp, 1, INT32_MAX) ||
         s_out(why, why_len, "settings.gather", s->gather, 0, INT32_MAX) ||
+        s_out(why, why_len, "settings.gather_filter", s->gather_filter, 0, PF_MAX_GATHER_FILTER) ||
         s_out(why, why_len, "settings.light_samples", s->light_samples, 1, INT32_MAX) ||
         s_out(why, why_len, "settings.max_depth", s->max_depth, 0, S_MAX_DEPTH) ||
         s_out(why, why_len, "settings.photon_max_depth", s->photon_max_depth, 0, S_MAX_DEPTH) ||

@@ -38,7 +38,7 @@
 #include "common/scene.h"
 
 #define PF_PROTO_MAGIC 0x4d524650u /* "PFRM" read as little-endian bytes 'P','F','R','M' */
-#define PF_PROTO_VERSION 1
+#define PF_PROTO_VERSION 2
 #define PF_PROTO_HEADER_SIZE 16
 #define PF_PROTO_MAX_STRING 1024
 #define PF_PROTO_CHUNK_SIZE (1u << 20)            /* blob chunk payload */

@@ -5,7 +5,7 @@
  * u16 length and that many bytes without a NUL, vec3 is three f32):
  *   u32 magic PF_SCENEBLOB_MAGIC, u16 version PF_SCENEBLOB_VERSION, u16 0
  *   str path                      (where the scene came from; for messages only)
- *   settings                      (the field group of messages.c, 80 bytes)
+ *   settings                      (the field group of messages.c, 84 bytes)
  *   u8 has_camera, vec3 pos, vec3 look_at, vec3 up, f32 vfov_deg
  *   u32 nmats,    nmats x   { str name, u8 type, vec3 kd, vec3 ks, f32 ns, vec3 kt, f32 ior, vec3 le }
  *   u32 nmeshes,  nmeshes x { str name, u64 nverts, u64 ntris, u8 has_normals,

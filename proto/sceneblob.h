@@ -9,7 +9,7 @@
 #include "proto/messages.h"
 
 #define PF_SCENEBLOB_MAGIC 0x4e435346u /* "FSCN" */
-#define PF_SCENEBLOB_VERSION 1
+#define PF_SCENEBLOB_VERSION 2
 
 /* Serializes a finalized scene into out (reset first). 0 or PF_ENOMEM. */
 int pf_sceneblob_write(const pf_scene_t *scene, pf_buf_t *out);

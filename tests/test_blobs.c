@@ -150,6 +150,7 @@ static int s_settings_equal(const pf_settings_t *a, const pf_settings_t *b)
 {
     return a->width == b->width && a->height == b->height && a->spp == b->spp && a->photons == b->photons &&
            a->caustic_photons == b->caustic_photons && a->gather == b->gather &&
+           a->gather_filter == b->gather_filter &&
            a->light_samples == b->light_samples && a->max_depth == b->max_depth &&
            a->photon_max_depth == b->photon_max_depth && a->global_k == b->global_k && a->caustic_k == b->caustic_k &&
            memcmp(&a->caustic_radius, &b->caustic_radius, 4) == 0 &&
@@ -252,7 +253,7 @@ static s_offsets_t s_walk(const uint8_t *d)
     o.reserved = at;
     at += 2;
     at += 2 + s_str_len_at(d + at); /* path */
-    at += 80;                       /* settings */
+    at += 84;                       /* settings */
     o.has_camera = at;
     at += 1 + 40;
     o.nmats = at;
@@ -343,7 +344,7 @@ static void test_scene_blob(void)
 
     const s_spatch_t patches[] = {
         { 0, 1, 'X', 0, "bad magic", "magic" },
-        { 4, 2, 2, 0, "format version 2", "version" },
+        { 4, 2, 9, 0, "format version 9", "version" },
         { o.reserved, 2, 1, 0, "reserved", "reserved field" },
         { o.has_camera, 1, 2, 0, "has_camera", "has_camera 2" },
         { o.has_camera + 1, -4, 0, NAN, "camera pos is not a finite number", "camera NaN" },
@@ -692,6 +693,7 @@ static void test_settings_hash(void)
     s.height = 9;
     s.spp = 64;
     s.gather = 0;
+    s.gather_filter = 5;
     s.light_samples = 4;
     s.max_depth = 3;
     s.threads = 7;

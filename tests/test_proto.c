@@ -93,6 +93,7 @@ static void s_sample(int type, pf_msg_t *m)
         j->settings.photons = 0x100000001ULL;
         j->settings.caustic_photons = 77;
         j->settings.gather = 0;
+        j->settings.gather_filter = 8;
         j->settings.light_samples = 3;
         j->settings.max_depth = 0;
         j->settings.photon_max_depth = 100000;
@@ -194,7 +195,7 @@ static const char *s_diff(const pf_msg_t *a, const pf_msg_t *b)
             return "settings.size/spp";
         if (s->photons != t->photons || s->caustic_photons != t->caustic_photons)
             return "settings.photons";
-        if (s->gather != t->gather || s->light_samples != t->light_samples)
+        if (s->gather != t->gather || s->gather_filter != t->gather_filter || s->light_samples != t->light_samples)
             return "settings.gather/light_samples";
         if (s->max_depth != t->max_depth || s->photon_max_depth != t->photon_max_depth)
             return "settings.depths";
@@ -349,7 +350,7 @@ static void test_settings_group(void)
     s.seed = 0x8000000000000001ULL;
     s.threads = 3;
     pf_buf_t b = { 0 };
-    CHECK(pf_wr_settings(&b, &s) == 0 && b.len == 80, "settings group is 80 bytes (got %zu)", b.len);
+    CHECK(pf_wr_settings(&b, &s) == 0 && b.len == 84, "settings group is 84 bytes (got %zu)", b.len);
     pf_rd_t r = pf_rd_make(b.data, b.len);
     pf_settings_t t;
     memset(&t, 0xee, sizeof t);
@@ -528,8 +529,10 @@ static void test_corruptions(void)
         c[0] ^= 0x20;
         s_expect(c, b.len, PF_EPARSE, "magic", "bad magic");
         memcpy(c, b.data, b.len);
-        c[4] = 2;
-        s_expect(c, b.len, PF_EMISMATCH, "protocol version 2 (peer) vs 1", "other version");
+        c[4] = 9;
+        char want[64];
+        snprintf(want, sizeof want, "protocol version 9 (peer) vs %d", PF_PROTO_VERSION);
+        s_expect(c, b.len, PF_EMISMATCH, want, "other version");
         c[4] = 0;
         s_expect(c, b.len, PF_EMISMATCH, "version 0", "version 0");
         /* A foreign version is reported even when the rest is garbage. */
@@ -579,7 +582,7 @@ static void test_corruptions(void)
     s_patch_test(PF_MSG_REFUSE, refuse, NPATCH(refuse));
 
     /* JOB: four u64 then the settings at 48 (layout in messages.c), terms at
-     * 128, tile_size at 132. */
+     * 132, tile_size at 136. */
     const s_patch_t job[] = {
         { 48, 4, 0, "settings.width 0", 0 },
         { 48, 4, 65537, "settings.width", 0 },
@@ -587,25 +590,26 @@ static void test_corruptions(void)
         { 52, 4, 0, "settings.height", 0 },
         { 56, 4, 0, "settings.spp", 0 },
         { 76, 4, 0xffffffffu, "settings.gather -1", 0 },
-        { 80, 4, 0, "settings.light_samples", 0 },
-        { 84, 4, 100001, "settings.max_depth", 0 },
-        { 84, 4, 0x80000000u, "settings.max_depth", 0 },
-        { 88, 4, 100001, "settings.photon_max_depth", 0 },
-        { 92, 4, 0, "settings.global_k", 0 },
-        { 92, 4, 1025, "settings.global_k", 0 },
-        { 96, 4, 0, "settings.caustic_k", 0 },
-        { 96, 4, 1025, "settings.caustic_k", 0 },
-        { 100, 4, 0x7fc00000u, "settings.caustic_radius is not a finite number", 0 },
-        { 100, 4, 0xbf800000u, "settings.caustic_radius -1 must be finite and >= 0", 0 },
-        { 104, 4, 0x7f800000u, "settings.global_radius", 0 },
-        { 104, 4, 0xbf800000u, "settings.global_radius", 0 },
-        { 108, 4, 0, "settings.irradiance_stride", 0 },
-        { 112, 4, 0xffffffffu, "settings.threads", 0 },
-        { 124, 4, 0xff800000u, "settings.exposure", 0 },
-        { 128, 4, 0, "terms 0", 0 },
-        { 128, 4, 32, "terms 32", 0 },
-        { 132, 4, 0, "tile_size 0", 0 },
-        { 132, 4, 257, "tile_size", 0 },
+        { 80, 4, 9, "settings.gather_filter 9 is out of range 0..8", 0 },
+        { 84, 4, 0, "settings.light_samples", 0 },
+        { 88, 4, 100001, "settings.max_depth", 0 },
+        { 88, 4, 0x80000000u, "settings.max_depth", 0 },
+        { 92, 4, 100001, "settings.photon_max_depth", 0 },
+        { 96, 4, 0, "settings.global_k", 0 },
+        { 96, 4, 1025, "settings.global_k", 0 },
+        { 100, 4, 0, "settings.caustic_k", 0 },
+        { 100, 4, 1025, "settings.caustic_k", 0 },
+        { 104, 4, 0x7fc00000u, "settings.caustic_radius is not a finite number", 0 },
+        { 104, 4, 0xbf800000u, "settings.caustic_radius -1 must be finite and >= 0", 0 },
+        { 108, 4, 0x7f800000u, "settings.global_radius", 0 },
+        { 108, 4, 0xbf800000u, "settings.global_radius", 0 },
+        { 112, 4, 0, "settings.irradiance_stride", 0 },
+        { 116, 4, 0xffffffffu, "settings.threads", 0 },
+        { 128, 4, 0xff800000u, "settings.exposure", 0 },
+        { 132, 4, 0, "terms 0", 0 },
+        { 132, 4, 32, "terms 32", 0 },
+        { 136, 4, 0, "tile_size 0", 0 },
+        { 136, 4, 257, "tile_size", 0 },
     };
     s_patch_test(PF_MSG_JOB, job, NPATCH(job));
 
@@ -810,9 +814,10 @@ static void test_fingerprint(void)
     CHECK(pf_fingerprint_check(&w, &self, why, sizeof why) == 0 && why[0] == '\0', "git differs: '%s'", why);
 
     w = self;
-    w.protocol = 2;
-    CHECK(pf_fingerprint_check(&w, &self, why, sizeof why) == PF_EMISMATCH &&
-              strstr(why, "protocol version 2 (worker) vs 1 (coordinator)"),
+    w.protocol = 9;
+    char want[64];
+    snprintf(want, sizeof want, "protocol version 9 (worker) vs %d (coordinator)", PF_PROTO_VERSION);
+    CHECK(pf_fingerprint_check(&w, &self, why, sizeof why) == PF_EMISMATCH && strstr(why, want),
           "protocol: '%s'", why);
     w = self;
     w.photon_size = 40;

@@ -67,8 +67,10 @@ static void test_prims(void)
     CHECK(s->photons == 9007199254740992ull, "photons 2^53 accepted exactly: %llu", (unsigned long long)s->photons);
     CHECK(s->caustic_photons == 12345 && s->seed == 42, "caustic_photons %llu seed %llu",
           (unsigned long long)s->caustic_photons, (unsigned long long)s->seed);
-    CHECK(s->gather == 7 && s->light_samples == 3 && s->max_depth == 5 && s->photon_max_depth == 9,
-          "gather %d light_samples %d depths %d %d", s->gather, s->light_samples, s->max_depth, s->photon_max_depth);
+    CHECK(s->gather == 7 && s->gather_filter == 3 && s->light_samples == 3 && s->max_depth == 5 &&
+              s->photon_max_depth == 9,
+          "gather %d filter %d light_samples %d depths %d %d", s->gather, s->gather_filter, s->light_samples,
+          s->max_depth, s->photon_max_depth);
     CHECK(s->global_k == 50 && s->caustic_k == 40 && s->irradiance_stride == 2, "k %d %d stride %d", s->global_k,
           s->caustic_k, s->irradiance_stride);
     CHECK(s->caustic_radius == 0.25f && s->global_radius == 0.5f && s->exposure == -1.5f, "radii %g %g exposure %g",

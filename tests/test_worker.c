@@ -841,7 +841,7 @@ static void s_run_render(const char *exe, const s_fixture_t *fx)
     pf_buf_t b = { 0 };
     pf_msg_encode(&tm, &b);
     s_send_raw(&c, b.data, b.len - 3);                   /* truncated TILE */
-    b.data[4] = 2;                                       /* another protocol version */
+    b.data[4] = 9;                                       /* another protocol version */
     s_send_raw(&c, b.data, b.len);
     b.data[4] = PF_PROTO_VERSION;
     zmq_send(c.router, c.id, c.id_len, ZMQ_SNDMORE);     /* two frames */

@@ -282,8 +282,9 @@ fail:
     s_built_release(b);
 }
 
-/* Renders one tile: OpenMP over rows, each row its own pf_render_tile call,
- * so the pixels are those of any other split of the image. */
+/* Renders one tile: OpenMP over the rows of its first-gather records, then
+ * over its rows (pf_tile_plan_t); the pixels are those of any other split of
+ * the image. */
 static void s_compute_tile(s_worker *w, s_work *it)
 {
     s_job *job = it->job;
@@ -291,17 +292,24 @@ static void s_compute_tile(s_worker *w, s_work *it)
     int x0 = (int)it->tile.x0, y0 = (int)it->tile.y0, tw = (int)it->tile.w, th = (int)it->tile.h;
     float *out = it->rgb;
     double t0 = pf_now();
+    pf_tile_plan_t *plan = pf_tile_plan_new(ctx, x0, y0, tw, th);
+    int record_rows = pf_tile_plan_record_rows(plan);
 #pragma omp parallel num_threads(w->threads)
     {
         pf_accel_thread_init();
 #pragma omp for schedule(dynamic, 1)
+        for (int row = 0; row < record_rows; row++)
+            if (!atomic_load_explicit(&job->cancelled, memory_order_relaxed))
+                pf_tile_plan_record_row(plan, row);
+#pragma omp for schedule(dynamic, 1)
         for (int row = 0; row < th; row++) {
             if (atomic_load_explicit(&job->cancelled, memory_order_relaxed))
                 continue;
-            pf_render_tile(ctx, x0, y0 + row, tw, 1, out + (size_t)row * (size_t)tw * 3);
+            pf_tile_plan_render_row(plan, row, out + (size_t)row * (size_t)tw * 3);
             atomic_fetch_add_explicit(&w->progress, (uint_fast64_t)tw, memory_order_relaxed);
         }
     }
+    pf_tile_plan_free(plan);
     double us = (pf_now() - t0) * 1e6;
     it->render_us = us >= 4294967295.0 ? UINT32_MAX : (uint32_t)us;
     uint64_t dropped = __atomic_load_n(&job->dropped, __ATOMIC_RELAXED);

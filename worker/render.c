@@ -3,12 +3,15 @@
  * precomputed irradiance (Jensen 2001, ch. 9; Christensen 1999).
  *
  * Parameters (pf_settings_t; defaults in scene.c):
- *   spp            16   camera samples per pixel, stratified kx x ky (box filter)
- *   light_samples  1    shadow rays per camera sample at a non-specular point
- *   gather         16   final-gather rays per camera sample at a diffuse point, scaled by
+ *   spp            36   camera samples per pixel, stratified kx x ky (box filter)
+ *   light_samples  2    shadow rays per camera sample at a non-specular point
+ *   gather         1    final-gather rays per camera sample at a diffuse point, scaled by
  *                       the path's throughput (at least 1) below specular splits;
  *                       many camera samples with few gather rays each beat the
  *                       reverse at equal cost (the light's edges alias otherwise)
+ *   gather_filter  2    the first gather of a camera path (through mirrors) is
+ *                       shared over (2n+1)^2 pixels on the same surface (see
+ *                       "Filtering the first gather" below)
  *   max_depth      16   mirror/glass recursion depth of camera paths
  *   caustic_k      80   photons per caustic estimate, cone filter, radius <= caustic_radius
  *   global_k       100  photons per irradiance estimate (precomputed at every
@@ -54,6 +57,7 @@
 #include <string.h>
 
 #include "common/bsdf.h"
+#include "common/log.h"
 #include "common/rng.h"
 
 /* The camera samples of one pixel reach nearly the same points, and the
@@ -70,6 +74,13 @@ typedef struct s_state {
     int caustic_valid;
     pf_vec3 caustic_p, caustic_n, caustic_e;
     float caustic_reach2;
+    /* The filtered first gather (pf_render_tile): when filtering, the gather
+     * at a camera ray's first hit takes first_g if first_ok, else gathers
+     * with the sample's own gather stream. */
+    int filtering, first_ok;
+    pf_vec3 first_g;
+    uint64_t pixel;
+    uint32_t sample;
     pf_knn_t scratch[PF_MAX_K];
 } s_state;
 
@@ -217,9 +228,10 @@ static pf_vec3 s_gather_ray(s_state *st, pf_ray_t ray)
     return pf_v3s(0.0f);
 }
 
-/* Indirect light at a diffuse hit: n cosine-distributed gather rays. Returns
- * the reflected radiance kd * mean(L_i) (f cos / pdf = kd). */
-static pf_vec3 s_final_gather(s_state *st, const pf_hit_t *h, const pf_material_t *m, pf_vec3 nf, pf_vec3 ns, int n)
+/* The final gather at a diffuse hit: the mean radiance mean(L_i) of n
+ * cosine-distributed gather rays; the reflected radiance is kd times it
+ * (f cos / pdf = kd). */
+static pf_vec3 s_gather_mean(s_state *st, const pf_hit_t *h, pf_vec3 nf, pf_vec3 ns, int n)
 {
     pf_vec3 sum = pf_v3s(0.0f);
     for (int i = 0; i < n; i++) {
@@ -228,13 +240,54 @@ static pf_vec3 s_final_gather(s_state *st, const pf_hit_t *h, const pf_material_
             continue;
         sum = pf_add(sum, s_gather_ray(st, pf_spawn_ray(h, wi)));
     }
-    return pf_mul(m->kd, pf_scale(sum, 1.0f / (float)n));
+    return pf_scale(sum, 1.0f / (float)n);
+}
+
+/* The first gather of a camera sample (depth 0), from its own random stream
+ * so that any tile can compute it for any pixel (pf_render_tile's records). */
+static pf_vec3 s_first_gather(s_state *st, const pf_hit_t *h, pf_vec3 nf, pf_vec3 ns)
+{
+    if (st->first_ok)
+        return st->first_g;
+    pf_rng_t pixel_rng = st->rng;
+    st->rng = pf_rng_make(st->ctx->settings.seed, PF_STREAM_GATHER, st->pixel, st->sample);
+    pf_vec3 g = s_gather_mean(st, h, nf, ns, st->ctx->settings.gather);
+    st->rng = pixel_rng;
+    return g;
+}
+
+/* Glass paths of the camera split into both branches above this depth. */
+#define S_GLASS_SPLIT_DEPTH 2
+
+/* A glass interface met along direction d (geometric normal ng, wo = -d,
+ * ns the shading normal on wo's side): its Fresnel reflectance, whether it
+ * refracts, both directions and the transmission weight (kt scaled by the
+ * radiance's (eta_i / eta_t)^2 across the interface). */
+typedef struct s_glass {
+    float f;
+    int can_refract;
+    pf_vec3 wr, wt, kt;
+} s_glass;
+
+static s_glass s_glass_at(const pf_material_t *m, pf_vec3 d, pf_vec3 ng, pf_vec3 wo, pf_vec3 ns)
+{
+    s_glass g;
+    int entering = pf_dot(d, ng) < 0.0f;
+    float eta_i = entering ? 1.0f : m->ior, eta_t = entering ? m->ior : 1.0f;
+    g.f = pf_fresnel_dielectric(pf_dot(wo, ns), eta_i, eta_t);
+    g.wt = pf_v3s(0.0f);
+    g.can_refract = g.f < 1.0f && pf_refract(wo, ns, eta_i / eta_t, &g.wt);
+    float s = eta_i / eta_t;
+    g.kt = pf_scale(m->kt, s * s);
+    g.wr = pf_reflect(wo, ns);
+    return g;
 }
 
 /* Radiance along a camera path. thr is the path's throughput so far (to size
  * the final gather below dim specular branches); count_le says whether an
- * emitter hit here counts (see the table above). */
-static pf_vec3 s_radiance(s_state *st, pf_ray_t ray, int depth, pf_vec3 thr, int count_le)
+ * emitter hit here counts (see the table above); primary, whether the path
+ * has met only mirrors so far (its first gather may be filtered). */
+static pf_vec3 s_radiance(s_state *st, pf_ray_t ray, int depth, pf_vec3 thr, int count_le, int primary)
 {
     const pf_render_ctx_t *c = st->ctx;
     pf_hit_t h;
@@ -268,8 +321,10 @@ static pf_vec3 s_radiance(s_state *st, pf_ray_t ray, int depth, pf_vec3 thr, int
             if (c->terms & PF_TERM_INDIRECT) {
                 float w = fminf(1.0f, pf_maxc(thr));
                 int n = (int)ceilf((float)c->settings.gather * w);
-                if (n > 0)
-                    L = pf_add(L, s_final_gather(st, &h, m, nf, ns, n));
+                if (primary && st->filtering)
+                    L = pf_add(L, pf_mul(m->kd, s_first_gather(st, &h, nf, ns)));
+                else if (n > 0)
+                    L = pf_add(L, pf_mul(m->kd, s_gather_mean(st, &h, nf, ns, n)));
             }
         }
         if (pf_mat_glossy(m) && depth < c->settings.max_depth) {
@@ -278,7 +333,7 @@ static pf_vec3 s_radiance(s_state *st, pf_ray_t ray, int depth, pf_vec3 thr, int
             float cos_i = pf_dot(wi, ns);
             if (cos_i > 0.0f && pf_dot(wi, nf) > 0.0f) {
                 pf_vec3 wgt = pf_scale(m->ks, (m->ns + 2.0f) / (m->ns + 1.0f) * cos_i);
-                pf_vec3 li = s_radiance(st, pf_spawn_ray(&h, wi), depth + 1, pf_mul(thr, wgt), 0);
+                pf_vec3 li = s_radiance(st, pf_spawn_ray(&h, wi), depth + 1, pf_mul(thr, wgt), 0, 0);
                 L = pf_add(L, pf_mul(wgt, li));
             }
         }
@@ -288,29 +343,27 @@ static pf_vec3 s_radiance(s_state *st, pf_ray_t ray, int depth, pf_vec3 thr, int
         return L;
     if (m->type == PF_MAT_MIRROR) {
         pf_vec3 wi = pf_reflect(wo, ns);
-        return pf_add(L, pf_mul(m->ks, s_radiance(st, pf_spawn_ray(&h, wi), depth + 1, pf_mul(thr, m->ks), 1)));
+        return pf_add(L, pf_mul(m->ks, s_radiance(st, pf_spawn_ray(&h, wi), depth + 1, pf_mul(thr, m->ks), 1, primary)));
     }
     /* Glass: both branches near the eye, where their noise would show; one
-     * chosen by Fresnel deeper down. */
-    int entering = pf_dot(ray.d, h.ng) < 0.0f;
-    float eta_i = entering ? 1.0f : m->ior, eta_t = entering ? m->ior : 1.0f;
-    float f = pf_fresnel_dielectric(pf_dot(wo, ns), eta_i, eta_t);
-    pf_vec3 wt;
-    int can_refract = f < 1.0f && pf_refract(wo, ns, eta_i / eta_t, &wt);
-    float s = eta_i / eta_t;
-    pf_vec3 kt = pf_scale(m->kt, s * s);
-    pf_vec3 wr = pf_reflect(wo, ns);
-    if (!can_refract)
-        return pf_add(L, pf_mul(m->ks, s_radiance(st, pf_spawn_ray(&h, wr), depth + 1, pf_mul(thr, m->ks), 1)));
-    if (depth < 2) {
+     * chosen by Fresnel deeper down. The refracted branch near the eye (or
+     * the reflection alone under total internal reflection) goes on as the
+     * primary path; s_primary_hit follows the same choice. */
+    s_glass g = s_glass_at(m, ray.d, h.ng, wo, ns);
+    float f = g.f;
+    pf_vec3 wt = g.wt, wr = g.wr, kt = g.kt;
+    if (!g.can_refract)
+        return pf_add(L, pf_mul(m->ks, s_radiance(st, pf_spawn_ray(&h, wr), depth + 1, pf_mul(thr, m->ks), 1,
+                                                  primary)));
+    if (depth < S_GLASS_SPLIT_DEPTH) {
         pf_vec3 kr = pf_scale(m->ks, f), ktt = pf_scale(kt, 1.0f - f);
-        pf_vec3 lr = s_radiance(st, pf_spawn_ray(&h, wr), depth + 1, pf_mul(thr, kr), 1);
-        pf_vec3 lt = s_radiance(st, pf_spawn_ray(&h, wt), depth + 1, pf_mul(thr, ktt), 1);
+        pf_vec3 lr = s_radiance(st, pf_spawn_ray(&h, wr), depth + 1, pf_mul(thr, kr), 1, 0);
+        pf_vec3 lt = s_radiance(st, pf_spawn_ray(&h, wt), depth + 1, pf_mul(thr, ktt), 1, primary);
         return pf_add(L, pf_add(pf_mul(kr, lr), pf_mul(ktt, lt)));
     }
     if (s_u(st) < f)
-        return pf_add(L, pf_mul(m->ks, s_radiance(st, pf_spawn_ray(&h, wr), depth + 1, pf_mul(thr, m->ks), 1)));
-    return pf_add(L, pf_mul(kt, s_radiance(st, pf_spawn_ray(&h, wt), depth + 1, pf_mul(thr, kt), 1)));
+        return pf_add(L, pf_mul(m->ks, s_radiance(st, pf_spawn_ray(&h, wr), depth + 1, pf_mul(thr, m->ks), 1, 0)));
+    return pf_add(L, pf_mul(kt, s_radiance(st, pf_spawn_ray(&h, wt), depth + 1, pf_mul(thr, kt), 1, 0)));
 }
 
 pf_vec3 pf_render_gather_ray(const pf_render_ctx_t *ctx, pf_ray_t ray, uint64_t sample)
@@ -319,6 +372,8 @@ pf_vec3 pf_render_gather_ray(const pf_render_ctx_t *ctx, pf_ray_t ray, uint64_t 
     st.ctx = ctx;
     st.rng = pf_rng_make(ctx->settings.seed, PF_STREAM_PIXEL, sample, 0);
     st.caustic_valid = 0;
+    st.filtering = 0;
+    st.first_ok = 0;
     return s_gather_ray(&st, ray);
 }
 
@@ -335,53 +390,336 @@ void pf_render_ctx_init(pf_render_ctx_t *ctx, const pf_scene_t *scene, const pf_
     ctx->terms = PF_TERM_ALL;
 }
 
-void pf_render_tile(const pf_render_ctx_t *ctx, int x0, int y0, int w, int h, float *out)
+/* Filtering the first gather.
+ *
+ * The indirect term is smooth where the surface is, so the gathers of a
+ * pixel's neighbours estimate it as well as its own: every camera sample
+ * whose primary path (through mirrors, and glass refracting near the eye;
+ * s_primary_hit) ends on a diffuse surface takes the mean of the gathers
+ * there of all samples in the (2R+1) x (2R+1) pixels around its pixel that
+ * lie on the same surface (normals within S_FILTER_COS, within a pixel's
+ * width of its tangent plane and S_FILTER_REACH * (R + 1) pixel widths of
+ * it; the width measured by tracing the paths one pixel over, s_footprint),
+ * R = settings.gather_filter. Samples of one pixel are grouped into at most
+ * S_MAX_CLUSTERS such surfaces; a sample fitting none keeps its own gather.
+ * Only this gather is shared: direct light, caustics and the other branches
+ * stay per sample, and their gathers are not filtered.
+ *
+ * A first gather draws from its own stream (seed, gather, pixel, sample), so
+ * a tile computes its neighbours' records exactly as their own tiles do: the
+ * image still depends on the pixel alone, never on the tiling. The border of
+ * R pixels costs one camera ray and one gather per sample (about 13 % more
+ * gathers for 32-pixel tiles at R = 1). */
+#define S_FILTER_COS 0.95f
+#define S_FILTER_REACH 3.0f
+enum { S_MAX_CLUSTERS = 4, S_NO_CLUSTER = 255 };
+
+typedef struct s_cluster {
+    pf_vec3 p, n;   /* its first sample's hit point and (camera-facing) normal */
+    pf_vec3 gsum;   /* the sum of its samples' first gathers */
+    float foot;     /* a pixel's width at p */
+    int count;
+} s_cluster;
+
+typedef struct s_pixel_rec {
+    int nc;
+    s_cluster c[S_MAX_CLUSTERS];
+} s_pixel_rec;
+
+/* Whether q (normal m) lies on the surface of a cluster's point p (normal n)
+ * within reach pixel widths. */
+static int s_same_surface(const s_cluster *c, pf_vec3 q, pf_vec3 m, float reach)
+{
+    if (pf_dot(c->n, m) < S_FILTER_COS)
+        return 0;
+    pf_vec3 d = pf_sub(q, c->p);
+    float r = reach * c->foot;
+    return fabsf(pf_dot(d, c->n)) <= c->foot && pf_dot(d, d) <= r * r;
+}
+
+/* The tile's sampling pattern: jitter stratified on a kx x ky grid,
+ * kx = floor(sqrt(spp)) and ky = floor(spp / kx) (edges against the bright
+ * light dominate the error otherwise); the few samples beyond kx * ky are
+ * uniform. A square spp fills a k x k grid. */
+typedef struct s_pattern {
+    int spp, kx, ky, strata;
+} s_pattern;
+
+static s_pattern s_pattern_make(int spp)
+{
+    s_pattern pt = { spp > 0 ? spp : 1, 0, 0, 0 };
+    int kx = (int)sqrt((double)pt.spp);
+    while ((kx + 1) * (kx + 1) <= pt.spp)
+        kx++;
+    while (kx * kx > pt.spp)
+        kx--;
+    pt.kx = kx;
+    pt.ky = pt.spp / kx;
+    pt.strata = pt.kx * pt.ky;
+    return pt;
+}
+
+/* Camera sample s of pixel (px, py): starts the sample's pixel stream in st
+ * and returns its ray, through film position (*fx, *fy). */
+static pf_ray_t s_camera_sample(s_state *st, const s_pattern *pt, int px, int py, int s, float *fx, float *fy)
+{
+    const pf_render_ctx_t *ctx = st->ctx;
+    st->pixel = (uint64_t)py * (uint64_t)ctx->camera.width + (uint64_t)px;
+    st->sample = (uint32_t)s;
+    st->rng = pf_rng_make(ctx->settings.seed, PF_STREAM_PIXEL, st->pixel, (uint32_t)s);
+    float jx = s_u(st), jy = s_u(st);
+    if (s < pt->strata) {
+        jx = ((float)(s % pt->kx) + jx) / (float)pt->kx;
+        jy = ((float)(s / pt->kx) + jy) / (float)pt->ky;
+    }
+    *fx = (float)px + jx;
+    *fy = (float)py + jy;
+    return pf_camera_ray(&ctx->camera, *fx, *fy);
+}
+
+/* The end of a camera ray's primary path as s_radiance follows it (mirrors,
+ * glass refracting near the eye or reflecting totally) when that is a
+ * diffuse surface the final gather serves: the material, with the hit in *h,
+ * its camera-facing normals in *nf and *ns, and the path's length in *length;
+ * NULL otherwise. */
+static const pf_material_t *s_primary_hit(const pf_render_ctx_t *c, pf_ray_t ray, pf_hit_t *h, pf_vec3 *nf,
+                                          pf_vec3 *ns, float *length)
+{
+    *length = 0.0f;
+    for (int depth = 0; pf_accel_intersect(c->accel, &ray, INFINITY, h); depth++) {
+        const pf_material_t *m = &c->scene->mats[h->mat];
+        *length += h->t;
+        pf_vec3 wo = pf_neg(ray.d);
+        *nf = pf_face_forward(h->ng, wo);
+        *ns = pf_dot(h->ng, *nf) > 0.0f ? h->ns : pf_neg(h->ns);
+        if (m->type == PF_MAT_DIFFUSE)
+            return pf_mat_nonspecular(m) && !pf_is_black(m->kd) ? m : NULL;
+        if (depth >= c->settings.max_depth)
+            return NULL;
+        pf_vec3 wi = pf_reflect(wo, *ns);
+        if (m->type != PF_MAT_MIRROR) {
+            s_glass g = s_glass_at(m, ray.d, h->ng, wo, *ns);
+            if (g.can_refract && depth >= S_GLASS_SPLIT_DEPTH)
+                return NULL; /* a random branch from here on */
+            if (g.can_refract)
+                wi = g.wt;
+        }
+        ray = pf_spawn_ray(h, wi);
+    }
+    return NULL;
+}
+
+/* A pixel's width at the end of a primary path through film position
+ * (fx, fy) ending at p (normal nf): the distance to where the paths one
+ * pixel to the right and one down end on the same surface (mirrors and glass
+ * spread them far beyond the path's length times the pixel's angle), at
+ * least that length times the angle and at most S_FOOT_MAX times it. */
+#define S_FOOT_MAX 32.0f
+static float s_footprint(const pf_render_ctx_t *c, float fx, float fy, pf_vec3 p, pf_vec3 nf, float length)
+{
+    float base = length * 2.0f * c->camera.tan_half_v / (float)c->camera.height;
+    float foot = base;
+    for (int k = 0; k < 2; k++) {
+        pf_ray_t ray = pf_camera_ray(&c->camera, fx + (k == 0 ? 1.0f : 0.0f), fy + (k == 1 ? 1.0f : 0.0f));
+        pf_hit_t h;
+        pf_vec3 n2, ns2;
+        float len2;
+        if (!s_primary_hit(c, ray, &h, &n2, &ns2, &len2) || pf_dot(n2, nf) < S_FILTER_COS)
+            continue;
+        foot = fmaxf(foot, pf_len(pf_sub(h.p, p)));
+    }
+    return fminf(foot, S_FOOT_MAX * base);
+}
+
+/* The first-gather records of pixel (px, py): its samples' surfaces and
+ * gathers, and which surface each sample belongs to (ids[s]). */
+static void s_record_pixel(s_state *st, const s_pattern *pt, int px, int py, s_pixel_rec *rec, uint8_t *ids)
+{
+    const pf_render_ctx_t *c = st->ctx;
+    rec->nc = 0;
+    for (int s = 0; s < pt->spp; s++) {
+        ids[s] = S_NO_CLUSTER;
+        float fx, fy;
+        pf_ray_t ray = s_camera_sample(st, pt, px, py, s, &fx, &fy);
+        pf_hit_t h;
+        pf_vec3 nf, ns;
+        float length;
+        if (!s_primary_hit(c, ray, &h, &nf, &ns, &length))
+            continue;
+        int k = 0;
+        while (k < rec->nc && !s_same_surface(&rec->c[k], h.p, nf, S_FILTER_REACH))
+            k++;
+        if (k == S_MAX_CLUSTERS)
+            continue; /* gathers for itself in the render pass */
+        if (k == rec->nc)
+            rec->c[rec->nc++] = (s_cluster){ h.p, nf, pf_v3s(0.0f), s_footprint(c, fx, fy, h.p, nf, length), 0 };
+        st->first_ok = 0;
+        pf_vec3 g = s_first_gather(st, &h, nf, ns);
+        rec->c[k].gsum = pf_add(rec->c[k].gsum, g);
+        rec->c[k].count++;
+        ids[s] = (uint8_t)k;
+    }
+}
+
+/* A tile in the making: its first-gather records (none when not filtering). */
+struct pf_tile_plan {
+    const pf_render_ctx_t *ctx;
+    s_pattern pt;
+    int x0, y0, w, h;
+    int R, filter;
+    int rx0, ry0, rw, rh; /* the records' rectangle: the tile and its border, clipped to the image */
+    s_pixel_rec *recs;
+    uint8_t *ids;         /* rw * rh * spp cluster indices */
+};
+
+static s_state *s_state_new(const pf_render_ctx_t *ctx, int filtering)
 {
     s_state *st = malloc(sizeof *st);
     PF_CHECK(st != NULL);
     st->ctx = ctx;
-    int spp = ctx->settings.spp > 0 ? ctx->settings.spp : 1;
-    /* Jitter is stratified on a kx x ky grid, kx = floor(sqrt(spp)) and
-     * ky = floor(spp / kx) (edges against the bright light dominate the error
-     * otherwise); the few samples beyond kx * ky are uniform. A square spp
-     * fills a k x k grid. */
-    int kx = (int)sqrt((double)spp);
-    while ((kx + 1) * (kx + 1) <= spp)
-        kx++;
-    while (kx * kx > spp)
-        kx--;
-    int ky = spp / kx, strata = kx * ky;
-    for (int y = 0; y < h; y++) {
-        for (int x = 0; x < w; x++) {
-            int px = x0 + x, py = y0 + y;
-            uint64_t pixel = (uint64_t)py * (uint64_t)ctx->camera.width + (uint64_t)px;
-            double acc[3] = { 0, 0, 0 };
-            st->caustic_valid = 0;
-            for (int s = 0; s < spp; s++) {
-                st->rng = pf_rng_make(ctx->settings.seed, PF_STREAM_PIXEL, pixel, (uint32_t)s);
-                float jx = s_u(st), jy = s_u(st);
-                if (s < strata) {
-                    jx = ((float)(s % kx) + jx) / (float)kx;
-                    jy = ((float)(s / kx) + jy) / (float)ky;
-                }
-                pf_ray_t ray = pf_camera_ray(&ctx->camera, (float)px + jx, (float)py + jy);
-                pf_vec3 L = s_radiance(st, ray, 0, pf_v3s(1.0f), 1);
-                if (!pf_is_finite3(L) || L.x < 0.0f || L.y < 0.0f || L.z < 0.0f) {
-                    /* never let a NaN or negative sample reach the image, but say so */
-                    if (ctx->dropped)
-                        __atomic_fetch_add(ctx->dropped, 1, __ATOMIC_RELAXED);
-                    continue;
-                }
-                acc[0] += L.x;
-                acc[1] += L.y;
-                acc[2] += L.z;
-            }
-            float *o = &out[3 * ((size_t)y * (size_t)w + (size_t)x)];
-            for (int k = 0; k < 3; k++)
-                o[k] = (float)(acc[k] / spp);
-        }
+    st->filtering = filtering;
+    st->first_ok = 0;
+    st->caustic_valid = 0;
+    return st;
+}
+
+pf_tile_plan_t *pf_tile_plan_new(const pf_render_ctx_t *ctx, int x0, int y0, int w, int h)
+{
+    pf_tile_plan_t *p = calloc(1, sizeof *p);
+    PF_CHECK(p != NULL);
+    p->ctx = ctx;
+    p->pt = s_pattern_make(ctx->settings.spp);
+    p->x0 = x0, p->y0 = y0, p->w = w, p->h = h;
+    p->R = ctx->settings.gather_filter;
+    p->filter = p->R > 0 && ctx->settings.gather > 0 && (ctx->terms & PF_TERM_INDIRECT) &&
+                !(ctx->terms & PF_TERM_PHOTONMAP);
+    if (p->filter) {
+        int R = p->R;
+        p->rx0 = x0 - R > 0 ? x0 - R : 0;
+        p->ry0 = y0 - R > 0 ? y0 - R : 0;
+        int rx1 = x0 + w + R < ctx->camera.width ? x0 + w + R : ctx->camera.width;
+        int ry1 = y0 + h + R < ctx->camera.height ? y0 + h + R : ctx->camera.height;
+        p->rw = rx1 - p->rx0;
+        p->rh = ry1 - p->ry0;
+        p->recs = malloc((size_t)p->rw * (size_t)p->rh * sizeof *p->recs);
+        p->ids = malloc((size_t)p->rw * (size_t)p->rh * (size_t)p->pt.spp);
+        PF_CHECK(p->recs != NULL && p->ids != NULL);
+    }
+    return p;
+}
+
+int pf_tile_plan_record_rows(const pf_tile_plan_t *p) { return p->filter ? p->rh : 0; }
+
+void pf_tile_plan_record_row(pf_tile_plan_t *p, int row)
+{
+    s_state *st = s_state_new(p->ctx, 0);
+    for (int x = 0; x < p->rw; x++) {
+        size_t i = (size_t)row * (size_t)p->rw + (size_t)x;
+        s_record_pixel(st, &p->pt, p->rx0 + x, p->ry0 + row, &p->recs[i], &p->ids[i * (size_t)p->pt.spp]);
     }
     free(st);
+}
+
+/* The filtered first gather of each of pixel (px, py)'s surfaces: the mean
+ * over the neighbourhood's samples on it. */
+static void s_filtered_gathers(const pf_tile_plan_t *p, int px, int py, pf_vec3 gf[S_MAX_CLUSTERS])
+{
+    int R = p->R;
+    const s_pixel_rec *rec = &p->recs[(size_t)(py - p->ry0) * (size_t)p->rw + (size_t)(px - p->rx0)];
+    for (int k = 0; k < rec->nc; k++) {
+        const s_cluster *own = &rec->c[k];
+        pf_vec3 sum = pf_v3s(0.0f);
+        int count = 0;
+        for (int qy = py - R; qy <= py + R; qy++) {
+            if (qy < p->ry0 || qy >= p->ry0 + p->rh)
+                continue;
+            for (int qx = px - R; qx <= px + R; qx++) {
+                if (qx < p->rx0 || qx >= p->rx0 + p->rw)
+                    continue;
+                const s_pixel_rec *q = &p->recs[(size_t)(qy - p->ry0) * (size_t)p->rw + (size_t)(qx - p->rx0)];
+                for (int j = 0; j < q->nc; j++)
+                    if (s_same_surface(own, q->c[j].p, q->c[j].n, S_FILTER_REACH * (float)(R + 1))) {
+                        sum = pf_add(sum, q->c[j].gsum);
+                        count += q->c[j].count;
+                    }
+            }
+        }
+        gf[k] = pf_scale(sum, 1.0f / (float)count);
+    }
+}
+
+void pf_tile_plan_render_row(const pf_tile_plan_t *p, int row, float *out)
+{
+    const pf_render_ctx_t *ctx = p->ctx;
+    s_state *st = s_state_new(ctx, p->filter);
+    int py = p->y0 + row;
+    for (int x = 0; x < p->w; x++) {
+        int px = p->x0 + x;
+        pf_vec3 gf[S_MAX_CLUSTERS];
+        const uint8_t *pid = NULL;
+        if (p->filter) {
+            s_filtered_gathers(p, px, py, gf);
+            pid = &p->ids[((size_t)(py - p->ry0) * (size_t)p->rw + (size_t)(px - p->rx0)) * (size_t)p->pt.spp];
+        }
+        double acc[3] = { 0, 0, 0 };
+        st->caustic_valid = 0;
+        for (int s = 0; s < p->pt.spp; s++) {
+            float fx, fy;
+            pf_ray_t ray = s_camera_sample(st, &p->pt, px, py, s, &fx, &fy);
+            if (pid) {
+                st->first_ok = pid[s] != S_NO_CLUSTER;
+                if (st->first_ok)
+                    st->first_g = gf[pid[s]];
+            }
+            pf_vec3 L = s_radiance(st, ray, 0, pf_v3s(1.0f), 1, 1);
+            if (!pf_is_finite3(L) || L.x < 0.0f || L.y < 0.0f || L.z < 0.0f) {
+                /* never let a NaN or negative sample reach the image, but say so */
+                if (ctx->dropped)
+                    __atomic_fetch_add(ctx->dropped, 1, __ATOMIC_RELAXED);
+                continue;
+            }
+            acc[0] += L.x;
+            acc[1] += L.y;
+            acc[2] += L.z;
+        }
+        float *o = &out[3 * (size_t)x];
+        for (int k = 0; k < 3; k++)
+            o[k] = (float)(acc[k] / p->pt.spp);
+    }
+    free(st);
+}
+
+void pf_tile_plan_free(pf_tile_plan_t *p)
+{
+    if (!p)
+        return;
+    free(p->recs);
+    free(p->ids);
+    free(p);
+}
+
+void pf_render_tile(const pf_render_ctx_t *ctx, int x0, int y0, int w, int h, float *out)
+{
+    pf_render_tile_cost(ctx, x0, y0, w, h, out, NULL);
+}
+
+void pf_render_tile_cost(const pf_render_ctx_t *ctx, int x0, int y0, int w, int h, float *out, pf_tile_cost_t *cost)
+{
+    double t0 = cost ? pf_now() : 0.0;
+    pf_tile_plan_t *p = pf_tile_plan_new(ctx, x0, y0, w, h);
+    for (int row = 0; row < pf_tile_plan_record_rows(p); row++)
+        pf_tile_plan_record_row(p, row);
+    double t1 = cost ? pf_now() : 0.0;
+    for (int row = 0; row < h; row++)
+        pf_tile_plan_render_row(p, row, out + 3 * (size_t)row * (size_t)w);
+    if (cost) {
+        double t2 = pf_now();
+        cost->record_s += t1 - t0;
+        cost->render_s += t2 - t1;
+        cost->record_samples += (uint64_t)p->rw * (uint64_t)p->rh * (uint64_t)p->pt.spp;
+        cost->samples += (uint64_t)w * (uint64_t)h * (uint64_t)p->pt.spp;
+    }
+    pf_tile_plan_free(p);
 }
 
 void pf_render_image(const pf_render_ctx_t *ctx, pf_image_t *img, int threads, int tile, pf_progress_fn progress,

@@ -50,6 +50,29 @@ void pf_render_ctx_init(pf_render_ctx_t *ctx, const pf_scene_t *scene, const pf_
  * first), single-threaded (call it from as many threads as you like). */
 void pf_render_tile(const pf_render_ctx_t *ctx, int x0, int y0, int w, int h, float *out);
 
+/* A tile rendered in two steps, for splitting one tile over threads: the
+ * first-gather records of the tile and its border (rows 0 ..
+ * pf_tile_plan_record_rows - 1, any order, each row once, concurrently if
+ * you like), then the tile's rows (any order, concurrently), each written to
+ * its own w*3 floats. The pixels are those pf_render_tile gives. */
+typedef struct pf_tile_plan pf_tile_plan_t;
+pf_tile_plan_t *pf_tile_plan_new(const pf_render_ctx_t *ctx, int x0, int y0, int w, int h);
+int pf_tile_plan_record_rows(const pf_tile_plan_t *p);
+void pf_tile_plan_record_row(pf_tile_plan_t *p, int row);
+void pf_tile_plan_render_row(const pf_tile_plan_t *p, int row, float *out);
+void pf_tile_plan_free(pf_tile_plan_t *p);
+
+/* Where a tile's time went, for planning (--time-limit): the first-gather
+ * records (the tile and its border of settings.gather_filter pixels) and the
+ * rest. */
+typedef struct pf_tile_cost {
+    double record_s, render_s;          /* seconds */
+    uint64_t record_samples, samples;   /* camera samples recorded / rendered */
+} pf_tile_cost_t;
+
+/* pf_render_tile, adding its costs to *cost. */
+void pf_render_tile_cost(const pf_render_ctx_t *ctx, int x0, int y0, int w, int h, float *out, pf_tile_cost_t *cost);
+
 /* Progress callback: tiles done so far and in all. */
 typedef void (*pf_progress_fn)(void *user, int done, int total);
 
