@@ -89,6 +89,15 @@ static void s_test_furnace(void)
     }
 }
 
+/* Loads a shipped scene; NULL (and a failed check) if it does not load. */
+static pf_scene_t *s_load(const char *path)
+{
+    pf_error_t err = { { 0 } };
+    pf_scene_t *scene = pf_scene_load(path, &err);
+    CHECK(scene != NULL, "load %s: %s", path, err.msg);
+    return scene;
+}
+
 /* Renders a scene's image with the given threads and tile size through the
  * same steps as pf_job_render_local, and returns its photon maps too. */
 static void s_render_terms(const pf_scene_t *scene, const pf_settings_t *s0, unsigned terms, int threads, int tile,
@@ -126,8 +135,7 @@ static int s_same_tree(const pf_kdtree_t *a, const pf_kdtree_t *b)
 static void s_test_determinism(void)
 {
     pf_error_t err = { { 0 } };
-    pf_scene_t *scene = pf_scene_load("scenes/cornell-spheres/scene.json", &err);
-    CHECK(scene != NULL, "load: %s", err.msg);
+    pf_scene_t *scene = s_load("scenes/cornell-spheres/scene.json");
     if (!scene)
         return;
     pf_settings_t s = scene->settings;
@@ -231,9 +239,7 @@ static void s_test_determinism(void)
  * different colours meet in every corner). */
 static void s_test_filter(void)
 {
-    pf_error_t err = { { 0 } };
-    pf_scene_t *scene = pf_scene_load("scenes/cornell-box/scene.json", &err);
-    CHECK(scene != NULL, "load: %s", err.msg);
+    pf_scene_t *scene = s_load("scenes/cornell-box/scene.json");
     if (!scene)
         return;
     pf_settings_t s = scene->settings;
@@ -346,8 +352,7 @@ static void s_test_skips(void)
     /* The Cornell box has diffuse-to-diffuse light (no skip) but no mirror or
      * glass: no caustic map, and the image with caustic photons asked for
      * equals the one without. */
-    pf_scene_t *box = pf_scene_load("scenes/cornell-box/scene.json", &err);
-    CHECK(box != NULL, "load: %s", err.msg);
+    pf_scene_t *box = s_load("scenes/cornell-box/scene.json");
     if (!box)
         return;
     s = box->settings;
@@ -376,8 +381,7 @@ static void s_test_skips(void)
 static void s_accuracy(const char *scene_path, const char *ref_path, double max_relmse, double max_lum_dev)
 {
     pf_error_t err = { { 0 } };
-    pf_scene_t *scene = pf_scene_load(scene_path, &err);
-    CHECK(scene != NULL, "load: %s", err.msg);
+    pf_scene_t *scene = s_load(scene_path);
     if (!scene)
         return;
     pf_settings_t s = scene->settings;
