@@ -67,6 +67,33 @@
  * each), so the image stays a function of the pixel alone. */
 #define S_CAUSTIC_REUSE 0.25f
 
+#define S_FILTER_COS 0.95f
+#define S_FILTER_REACH 3.0f
+enum { S_MAX_CLUSTERS = 4 };
+
+typedef struct s_cluster {
+    pf_vec3 p, n;   /* its first sample's hit point and (camera-facing) normal */
+    pf_vec3 gsum;   /* the sum of its samples' first gathers */
+    float foot;     /* a pixel's width at p */
+    int count;
+} s_cluster;
+
+typedef struct s_pixel_rec {
+    int nc;
+    s_cluster c[S_MAX_CLUSTERS];
+} s_pixel_rec;
+
+/* Whether q (normal m) lies on the surface of a cluster's point p (normal n)
+ * within reach pixel widths. */
+static int s_same_surface(const s_cluster *c, pf_vec3 q, pf_vec3 m, float reach)
+{
+    if (pf_dot(c->n, m) < S_FILTER_COS)
+        return 0;
+    pf_vec3 d = pf_sub(q, c->p);
+    float r = reach * c->foot;
+    return fabsf(pf_dot(d, c->n)) <= c->foot && pf_dot(d, d) <= r * r;
+}
+
 /* Per-thread state for one pixel sample. */
 typedef struct s_state {
     const pf_render_ctx_t *ctx;
@@ -75,10 +102,12 @@ typedef struct s_state {
     pf_vec3 caustic_p, caustic_n, caustic_e;
     float caustic_reach2;
     /* The filtered first gather (pf_render_tile): when filtering, the gather
-     * at a camera ray's first hit takes first_g if first_ok, else gathers
-     * with the sample's own gather stream. */
-    int filtering, first_ok;
-    pf_vec3 first_g;
+     * at the end of a camera ray's primary path takes the filtered gather of
+     * the first of the pixel's surfaces (rec) it lies on, else gathers with
+     * the sample's own gather stream. */
+    int filtering;
+    const s_pixel_rec *rec;
+    pf_vec3 gf[S_MAX_CLUSTERS];
     uint64_t pixel;
     uint32_t sample;
     pf_knn_t scratch[PF_MAX_K];
@@ -247,8 +276,12 @@ static pf_vec3 s_gather_mean(s_state *st, const pf_hit_t *h, pf_vec3 nf, pf_vec3
  * so that any tile can compute it for any pixel (pf_render_tile's records). */
 static pf_vec3 s_first_gather(s_state *st, const pf_hit_t *h, pf_vec3 nf, pf_vec3 ns)
 {
-    if (st->first_ok)
-        return st->first_g;
+    /* The surfaces are tried in the order they were found, as the records
+     * assigned each sample to the first that took it (or to none of the
+     * S_MAX_CLUSTERS), so this is the surface the sample's gather went to. */
+    for (int k = 0; st->rec && k < st->rec->nc; k++)
+        if (s_same_surface(&st->rec->c[k], h->p, nf, S_FILTER_REACH))
+            return st->gf[k];
     pf_rng_t pixel_rng = st->rng;
     st->rng = pf_rng_make(st->ctx->settings.seed, PF_STREAM_GATHER, st->pixel, st->sample);
     pf_vec3 g = s_gather_mean(st, h, nf, ns, st->ctx->settings.gather);
@@ -373,7 +406,7 @@ pf_vec3 pf_render_gather_ray(const pf_render_ctx_t *ctx, pf_ray_t ray, uint64_t 
     st.rng = pf_rng_make(ctx->settings.seed, PF_STREAM_PIXEL, sample, 0);
     st.caustic_valid = 0;
     st.filtering = 0;
-    st.first_ok = 0;
+    st.rec = NULL;
     return s_gather_ray(&st, ray);
 }
 
@@ -410,33 +443,6 @@ void pf_render_ctx_init(pf_render_ctx_t *ctx, const pf_scene_t *scene, const pf_
  * image still depends on the pixel alone, never on the tiling. The border of
  * R pixels costs one camera ray and one gather per sample (about 13 % more
  * gathers for 32-pixel tiles at R = 1). */
-#define S_FILTER_COS 0.95f
-#define S_FILTER_REACH 3.0f
-enum { S_MAX_CLUSTERS = 4, S_NO_CLUSTER = 255 };
-
-typedef struct s_cluster {
-    pf_vec3 p, n;   /* its first sample's hit point and (camera-facing) normal */
-    pf_vec3 gsum;   /* the sum of its samples' first gathers */
-    float foot;     /* a pixel's width at p */
-    int count;
-} s_cluster;
-
-typedef struct s_pixel_rec {
-    int nc;
-    s_cluster c[S_MAX_CLUSTERS];
-} s_pixel_rec;
-
-/* Whether q (normal m) lies on the surface of a cluster's point p (normal n)
- * within reach pixel widths. */
-static int s_same_surface(const s_cluster *c, pf_vec3 q, pf_vec3 m, float reach)
-{
-    if (pf_dot(c->n, m) < S_FILTER_COS)
-        return 0;
-    pf_vec3 d = pf_sub(q, c->p);
-    float r = reach * c->foot;
-    return fabsf(pf_dot(d, c->n)) <= c->foot && pf_dot(d, d) <= r * r;
-}
-
 /* The tile's sampling pattern: jitter stratified on a kx x ky grid,
  * kx = floor(sqrt(spp)) and ky = floor(spp / kx) (edges against the bright
  * light dominate the error otherwise); the few samples beyond kx * ky are
@@ -532,13 +538,12 @@ static float s_footprint(const pf_render_ctx_t *c, float fx, float fy, pf_vec3 p
 }
 
 /* The first-gather records of pixel (px, py): its samples' surfaces and
- * gathers, and which surface each sample belongs to (ids[s]). */
-static void s_record_pixel(s_state *st, const s_pattern *pt, int px, int py, s_pixel_rec *rec, uint8_t *ids)
+ * the sums of their gathers. */
+static void s_record_pixel(s_state *st, const s_pattern *pt, int px, int py, s_pixel_rec *rec)
 {
     const pf_render_ctx_t *c = st->ctx;
     rec->nc = 0;
     for (int s = 0; s < pt->spp; s++) {
-        ids[s] = S_NO_CLUSTER;
         float fx, fy;
         pf_ray_t ray = s_camera_sample(st, pt, px, py, s, &fx, &fy);
         pf_hit_t h;
@@ -553,11 +558,10 @@ static void s_record_pixel(s_state *st, const s_pattern *pt, int px, int py, s_p
             continue; /* gathers for itself in the render pass */
         if (k == rec->nc)
             rec->c[rec->nc++] = (s_cluster){ h.p, nf, pf_v3s(0.0f), s_footprint(c, fx, fy, h.p, nf, length), 0 };
-        st->first_ok = 0;
+        st->rec = NULL;
         pf_vec3 g = s_first_gather(st, &h, nf, ns);
         rec->c[k].gsum = pf_add(rec->c[k].gsum, g);
         rec->c[k].count++;
-        ids[s] = (uint8_t)k;
     }
 }
 
@@ -569,7 +573,6 @@ struct pf_tile_plan {
     int R, filter;
     int rx0, ry0, rw, rh; /* the records' rectangle: the tile and its border, clipped to the image */
     s_pixel_rec *recs;
-    uint8_t *ids;         /* rw * rh * spp cluster indices */
 };
 
 static s_state *s_state_new(const pf_render_ctx_t *ctx, int filtering)
@@ -578,7 +581,7 @@ static s_state *s_state_new(const pf_render_ctx_t *ctx, int filtering)
     PF_CHECK(st != NULL);
     st->ctx = ctx;
     st->filtering = filtering;
-    st->first_ok = 0;
+    st->rec = NULL;
     st->caustic_valid = 0;
     return st;
 }
@@ -602,8 +605,7 @@ pf_tile_plan_t *pf_tile_plan_new(const pf_render_ctx_t *ctx, int x0, int y0, int
         p->rw = rx1 - p->rx0;
         p->rh = ry1 - p->ry0;
         p->recs = malloc((size_t)p->rw * (size_t)p->rh * sizeof *p->recs);
-        p->ids = malloc((size_t)p->rw * (size_t)p->rh * (size_t)p->pt.spp);
-        PF_CHECK(p->recs != NULL && p->ids != NULL);
+        PF_CHECK(p->recs != NULL);
     }
     return p;
 }
@@ -615,7 +617,7 @@ void pf_tile_plan_record_row(pf_tile_plan_t *p, int row)
     s_state *st = s_state_new(p->ctx, 0);
     for (int x = 0; x < p->rw; x++) {
         size_t i = (size_t)row * (size_t)p->rw + (size_t)x;
-        s_record_pixel(st, &p->pt, p->rx0 + x, p->ry0 + row, &p->recs[i], &p->ids[i * (size_t)p->pt.spp]);
+        s_record_pixel(st, &p->pt, p->rx0 + x, p->ry0 + row, &p->recs[i]);
     }
     free(st);
 }
@@ -655,22 +657,15 @@ void pf_tile_plan_render_row(const pf_tile_plan_t *p, int row, float *out)
     int py = p->y0 + row;
     for (int x = 0; x < p->w; x++) {
         int px = p->x0 + x;
-        pf_vec3 gf[S_MAX_CLUSTERS];
-        const uint8_t *pid = NULL;
         if (p->filter) {
-            s_filtered_gathers(p, px, py, gf);
-            pid = &p->ids[((size_t)(py - p->ry0) * (size_t)p->rw + (size_t)(px - p->rx0)) * (size_t)p->pt.spp];
+            st->rec = &p->recs[(size_t)(py - p->ry0) * (size_t)p->rw + (size_t)(px - p->rx0)];
+            s_filtered_gathers(p, px, py, st->gf);
         }
         double acc[3] = { 0, 0, 0 };
         st->caustic_valid = 0;
         for (int s = 0; s < p->pt.spp; s++) {
             float fx, fy;
             pf_ray_t ray = s_camera_sample(st, &p->pt, px, py, s, &fx, &fy);
-            if (pid) {
-                st->first_ok = pid[s] != S_NO_CLUSTER;
-                if (st->first_ok)
-                    st->first_g = gf[pid[s]];
-            }
             pf_vec3 L = s_radiance(st, ray, 0, pf_v3s(1.0f), 1, 1);
             if (!pf_is_finite3(L) || L.x < 0.0f || L.y < 0.0f || L.z < 0.0f) {
                 /* never let a NaN or negative sample reach the image, but say so */
@@ -694,7 +689,6 @@ void pf_tile_plan_free(pf_tile_plan_t *p)
     if (!p)
         return;
     free(p->recs);
-    free(p->ids);
     free(p);
 }
 
