@@ -524,7 +524,7 @@ static inline int s_hopeless(pf_vec3 x, float r2)
  * A subtree is skipped only when its plane is strictly farther than the
  * current bound (a photon exactly at the bound may still win on index), and
  * never when that distance is NaN. */
-size_t pf_kdtree_knn(const pf_kdtree_t *self, pf_vec3 x, size_t k, float max_r2, pf_knn_t *out)
+size_t pf_kdtree_knn_heap(const pf_kdtree_t *self, pf_vec3 x, size_t k, float max_r2, pf_knn_t *out)
 {
     if (!self || self->n == 0 || k == 0 || s_hopeless(x, max_r2))
         return 0;
@@ -575,13 +575,17 @@ size_t pf_kdtree_knn(const pf_kdtree_t *self, pf_vec3 x, size_t k, float max_r2,
         /* Entries pushed before the bound shrank may now be out of reach. */
         do {
             if (sp == 0)
-                goto sort;
+                return count;
             sp--;
         } while (stack[sp].d2 > bound);
         lo = stack[sp].lo;
         hi = stack[sp].hi;
     }
-sort:
+}
+
+size_t pf_kdtree_knn(const pf_kdtree_t *self, pf_vec3 x, size_t k, float max_r2, pf_knn_t *out)
+{
+    size_t count = pf_kdtree_knn_heap(self, x, k, max_r2, out);
     /* Heapsort the max-heap in place: ascending by (d2, index). */
     for (size_t end = count; end-- > 1;) {
         pf_knn_t t = out[0];

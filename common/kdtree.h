@@ -53,6 +53,11 @@ void pf_kdtree_bounds(const pf_kdtree_t *self, pf_vec3 *lo, pf_vec3 *hi);
  * result is a pure function of the tree and the query. */
 size_t pf_kdtree_knn(const pf_kdtree_t *self, pf_vec3 x, size_t k, float max_r2, pf_knn_t *out);
 
+/* The same k results unsorted: out[0] is the worst by (d2, index) (the
+ * k-th nearest when k were found), the rest in no useful order. For
+ * estimates that need only the set and its radius (no final sort). */
+size_t pf_kdtree_knn_heap(const pf_kdtree_t *self, pf_vec3 x, size_t k, float max_r2, pf_knn_t *out);
+
 /* The nearest photon to x within squared distance max_r2 whose stored normal
  * (pf_photon_t.normal, octahedral) has a cosine >= min_cos with unit n; ties
  * go to the lower tree index. Returns 1 and fills *out, or 0 if none. The

@@ -43,6 +43,13 @@ void pf_photon_maps_free(pf_photon_maps_t *maps);
 pf_vec3 pf_pm_irradiance(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int k, float max_r2, pf_knn_t *scratch,
                          float *r2_out);
 
+/* The same estimate, searched first within hint_r2 (a guess at the k-th
+ * photon's squared distance, from a nearby estimate): the same result as
+ * pf_pm_irradiance, faster when the guess holds k photons, a second search
+ * when it does not. */
+pf_vec3 pf_pm_irradiance_hint(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int k, float max_r2, float hint_r2,
+                              pf_knn_t *scratch, float *r2_out);
+
 /* The radius of the disc an irradiance point's estimate averaged over (its
  * support), kept in the point's otherwise unused direction field. */
 static inline float pf_irradiance_radius(const pf_photon_t *p)
@@ -54,9 +61,10 @@ static inline float pf_irradiance_radius(const pf_photon_t *p)
 
 /* The same with a cone filter (Jensen 2001, 7.2.2, k = 1): weight
  * 1 - d / r, normalized by 1 - 2 / 3 over the disc, which sharpens caustics.
- * The squared radius the estimate used goes to *r2_out unless NULL. */
-pf_vec3 pf_pm_irradiance_cone(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int k, float max_r2, pf_knn_t *scratch,
-                              float *r2_out);
+ * The squared radius the estimate used goes to *r2_out unless NULL; hint_r2
+ * as in pf_pm_irradiance_hint (max_r2 or more: none). */
+pf_vec3 pf_pm_irradiance_cone(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int k, float max_r2, float hint_r2,
+                              pf_knn_t *scratch, float *r2_out);
 
 /* Reflected radiance towards wo at x for a DIFFUSE material with a Phong
  * lobe, from the photons' directions (Jensen's original estimate): sum of

@@ -30,6 +30,9 @@ int pf_irradiance_precompute(const pf_kdtree_t *global, int stride, int k, float
     {
         pf_accel_thread_init();
         pf_knn_t *scratch = malloc((size_t)(k > 0 ? k : 1) * sizeof *scratch);
+        /* Points in tree order are near each other: the last estimate's
+         * radius, widened by 1.5, bounds the next search (same results). */
+        float hint = max_r2;
         if (!scratch) {
 #pragma omp atomic write
             failed = 1;
@@ -41,7 +44,8 @@ int pf_irradiance_precompute(const pf_kdtree_t *global, int stride, int k, float
             const pf_photon_t *p = &ph[i * (size_t)stride];
             pf_vec3 nrm = pf_oct_decode(p->normal);
             float r2 = 0.0f;
-            pf_vec3 e = pf_pm_irradiance(global, pf_photon_pos(p), nrm, k, max_r2, scratch, &r2);
+            pf_vec3 e = pf_pm_irradiance_hint(global, pf_photon_pos(p), nrm, k, max_r2, hint, scratch, &r2);
+            hint = r2 < max_r2 ? 1.44f * r2 : max_r2;
             float r = sqrtf(r2);
             uint32_t support;
             memcpy(&support, &r, sizeof support);

@@ -25,6 +25,7 @@
 #include <string.h>
 
 #include "common/kdtree.h"
+#include "common/photonmap.h"
 
 #include "check.h"
 
@@ -592,6 +593,7 @@ static void s_test_from_layout(void)
 #define pf_kdtree_axes s_fallback_axes
 #define pf_kdtree_bounds s_fallback_bounds
 #define pf_kdtree_knn s_fallback_knn
+#define pf_kdtree_knn_heap s_fallback_knn_heap
 #define pf_kdtree_radius s_fallback_radius
 #define pf_kdtree_nearest_normal s_fallback_nearest_normal
 #define pf_kdtree_index_nearest s_fallback_index_nearest
@@ -604,6 +606,7 @@ static void s_test_from_layout(void)
 #undef pf_kdtree_axes
 #undef pf_kdtree_bounds
 #undef pf_kdtree_knn
+#undef pf_kdtree_knn_heap
 #undef pf_kdtree_radius
 
 static void s_test_fallback(int kind, size_t n)
@@ -749,6 +752,50 @@ static void s_test_nearest_normal(int kind, size_t n, int nq, int indexed)
     free(input);
 }
 
+/* pf_pm_irradiance_hint gives exactly pf_pm_irradiance's estimate and radius
+ * (and pf_pm_irradiance_cone with a hint exactly its own without) whatever
+ * the hint: too small (a second search), the k-th photon's own
+ * distance (the inclusive edge), larger, none. */
+static void s_test_irradiance_hint(int kind, size_t n, int nq)
+{
+    pf_photon_t *input = s_make_set(kind, n);
+    for (size_t i = 0; i < n; i++) {
+        input[i].normal = pf_oct_encode(i % 5 == 4 ? pf_v3(0, 0, -1) : pf_v3(0, 0, 1));
+        input[i].power[0] = s_uniform();
+        input[i].power[1] = s_uniform();
+        input[i].power[2] = 1.0f;
+    }
+    pf_kdtree_t *t = s_build_copy(input, n);
+    const pf_photon_t *ph = pf_kdtree_photons(t);
+    pf_knn_t scratch[PF_MAX_K];
+    int bad = 0;
+    const int ks[4] = { 1, 2, 8, 100 };
+    for (int q = 0; q < nq; q++) {
+        pf_vec3 x = n && q % 2 ? pf_photon_pos(&ph[s_next() % n])
+                               : pf_v3(s_uniform() * 2.4f - 1.2f, s_uniform() * 2.4f - 1.2f, s_uniform() * 2.4f - 1.2f);
+        for (int ki = 0; ki < 4; ki++) {
+            for (int mi = 0; mi < 2; mi++) {
+                float max_r2 = mi ? 0.05f : INFINITY, r2 = 0.0f;
+                pf_vec3 e = pf_pm_irradiance(t, x, pf_v3(0, 0, 1), ks[ki], max_r2, scratch, &r2);
+                float hints[7] = { 0.0f, 1e-12f, 0.5f * r2, r2, nextafterf(r2, INFINITY), 4.0f * r2, INFINITY };
+                for (int h = 0; h < 7; h++) {
+                    float r2h = -1.0f;
+                    pf_vec3 eh = pf_pm_irradiance_hint(t, x, pf_v3(0, 0, 1), ks[ki], max_r2, hints[h], scratch, &r2h);
+                    bad += memcmp(&e, &eh, sizeof e) != 0 || memcmp(&r2, &r2h, sizeof r2) != 0;
+                    float r2c = -1.0f, r2ch = -1.0f;
+                    pf_vec3 ec = pf_pm_irradiance_cone(t, x, pf_v3(0, 0, 1), ks[ki], max_r2, max_r2, scratch, &r2c);
+                    pf_vec3 ech = pf_pm_irradiance_cone(t, x, pf_v3(0, 0, 1), ks[ki], max_r2, hints[h], scratch, &r2ch);
+                    bad += memcmp(&ec, &ech, sizeof ec) != 0 || memcmp(&r2c, &r2ch, sizeof r2c) != 0;
+                }
+            }
+        }
+    }
+    CHECK(bad == 0, "irradiance with a hint: %d of %d estimates differ from the search without one (set %d, n %zu)",
+          bad, nq * 4 * 2 * 7 * 2, kind, n);
+    pf_kdtree_destroy(&t);
+    free(input);
+}
+
 int main(void)
 {
     for (size_t n = 0; n <= 64; n++)
@@ -794,6 +841,10 @@ int main(void)
         s_test_nearest_normal(SET_GRID, 2500, 300, indexed);
         s_test_nearest_normal(SET_LINE, 1000, 300, indexed);
     }
+    s_test_irradiance_hint(SET_UNIFORM, 5000, 300);
+    s_test_irradiance_hint(SET_CLUSTERED, 3000, 300);
+    s_test_irradiance_hint(SET_COINCIDENT, 500, 100);
+    s_test_irradiance_hint(SET_GRID, 2500, 200);
     s_test_edges();
     s_test_from_layout();
     s_test_threads();

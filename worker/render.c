@@ -101,6 +101,7 @@ typedef struct s_state {
     int caustic_valid;
     pf_vec3 caustic_p, caustic_n, caustic_e;
     float caustic_reach2;
+    float caustic_hint; /* the last caustic estimate's squared radius, widened: bounds the next search */
     /* The filtered first gather (pf_render_tile): when filtering, the gather
      * at the end of a camera ray's primary path takes the filtered gather of
      * the first of the pixel's surfaces (rec) it lies on, else gathers with
@@ -123,7 +124,8 @@ static pf_vec3 s_caustic(s_state *st, pf_vec3 p, pf_vec3 nf)
     const pf_render_ctx_t *c = st->ctx;
     float r2 = 0.0f;
     pf_vec3 e = pf_pm_irradiance_cone(c->maps->caustic, p, nf, c->settings.caustic_k, c->maps->caustic_r2,
-                                      st->scratch, &r2);
+                                      st->caustic_hint, st->scratch, &r2);
+    st->caustic_hint = r2 < c->maps->caustic_r2 ? 2.25f * r2 : INFINITY;
     st->caustic_valid = 1;
     st->caustic_p = p;
     st->caustic_n = nf;
@@ -405,6 +407,7 @@ pf_vec3 pf_render_gather_ray(const pf_render_ctx_t *ctx, pf_ray_t ray, uint64_t 
     st.ctx = ctx;
     st.rng = pf_rng_make(ctx->settings.seed, PF_STREAM_PIXEL, sample, 0);
     st.caustic_valid = 0;
+    st.caustic_hint = INFINITY;
     st.filtering = 0;
     st.rec = NULL;
     return s_gather_ray(&st, ray);
@@ -583,6 +586,7 @@ static s_state *s_state_new(const pf_render_ctx_t *ctx, int filtering)
     st->filtering = filtering;
     st->rec = NULL;
     st->caustic_valid = 0;
+    st->caustic_hint = INFINITY;
     return st;
 }
 
