@@ -282,8 +282,9 @@ fail:
     s_built_release(b);
 }
 
-/* Renders one tile: OpenMP over the rows of its first-gather records, then
- * over its rows (pf_tile_plan_t); the pixels are those of any other split of
+/* Renders one tile: OpenMP over its rows, each recording the first-gather
+ * records it needs that no other row has (pf_tile_plan_t), so progress moves
+ * row by row for the watchdog; the pixels are those of any other split of
  * the image. */
 static void s_compute_tile(s_worker *w, s_work *it)
 {
@@ -293,14 +294,9 @@ static void s_compute_tile(s_worker *w, s_work *it)
     float *out = it->rgb;
     double t0 = pf_now();
     pf_tile_plan_t *plan = pf_tile_plan_new(ctx, x0, y0, tw, th);
-    int record_rows = pf_tile_plan_record_rows(plan);
 #pragma omp parallel num_threads(w->threads)
     {
         pf_accel_thread_init();
-#pragma omp for schedule(dynamic, 1)
-        for (int row = 0; row < record_rows; row++)
-            if (!atomic_load_explicit(&job->cancelled, memory_order_relaxed))
-                pf_tile_plan_record_row(plan, row);
 #pragma omp for schedule(dynamic, 1)
         for (int row = 0; row < th; row++) {
             if (atomic_load_explicit(&job->cancelled, memory_order_relaxed))

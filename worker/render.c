@@ -53,6 +53,7 @@
 #include "worker/render.h"
 
 #include <omp.h>
+#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -576,6 +577,8 @@ struct pf_tile_plan {
     int R, filter;
     int rx0, ry0, rw, rh; /* the records' rectangle: the tile and its border, clipped to the image */
     s_pixel_rec *recs;
+    atomic_int *done;     /* per record row: recorded */
+    omp_lock_t *locks;    /* per record row: held while it is recorded */
 };
 
 static s_state *s_state_new(const pf_render_ctx_t *ctx, int filtering)
@@ -609,14 +612,34 @@ pf_tile_plan_t *pf_tile_plan_new(const pf_render_ctx_t *ctx, int x0, int y0, int
         p->rw = rx1 - p->rx0;
         p->rh = ry1 - p->ry0;
         p->recs = malloc((size_t)p->rw * (size_t)p->rh * sizeof *p->recs);
-        PF_CHECK(p->recs != NULL);
+        p->done = malloc((size_t)p->rh * sizeof *p->done);
+        p->locks = malloc((size_t)p->rh * sizeof *p->locks);
+        PF_CHECK(p->recs != NULL && p->done != NULL && p->locks != NULL);
+        for (int r = 0; r < p->rh; r++) {
+            atomic_init(&p->done[r], 0);
+            omp_init_lock(&p->locks[r]);
+        }
     }
     return p;
 }
 
 int pf_tile_plan_record_rows(const pf_tile_plan_t *p) { return p->filter ? p->rh : 0; }
 
+static void s_record_row(pf_tile_plan_t *p, int row);
+
 void pf_tile_plan_record_row(pf_tile_plan_t *p, int row)
+{
+    if (atomic_load_explicit(&p->done[row], memory_order_acquire))
+        return;
+    omp_set_lock(&p->locks[row]);
+    if (!atomic_load_explicit(&p->done[row], memory_order_relaxed)) {
+        s_record_row(p, row);
+        atomic_store_explicit(&p->done[row], 1, memory_order_release);
+    }
+    omp_unset_lock(&p->locks[row]);
+}
+
+static void s_record_row(pf_tile_plan_t *p, int row)
 {
     s_state *st = s_state_new(p->ctx, 0);
     for (int x = 0; x < p->rw; x++) {
@@ -654,9 +677,15 @@ static void s_filtered_gathers(const pf_tile_plan_t *p, int px, int py, pf_vec3 
     }
 }
 
-void pf_tile_plan_render_row(const pf_tile_plan_t *p, int row, float *out)
+void pf_tile_plan_render_row(pf_tile_plan_t *p, int row, float *out)
 {
     const pf_render_ctx_t *ctx = p->ctx;
+    if (p->filter) {
+        /* the record rows this row's filter reads: R above to R below */
+        int first = p->y0 + row - p->R - p->ry0, last = p->y0 + row + p->R - p->ry0;
+        for (int r = first > 0 ? first : 0; r <= last && r < p->rh; r++)
+            pf_tile_plan_record_row(p, r);
+    }
     s_state *st = s_state_new(ctx, p->filter);
     int py = p->y0 + row;
     for (int x = 0; x < p->w; x++) {
@@ -692,6 +721,11 @@ void pf_tile_plan_free(pf_tile_plan_t *p)
 {
     if (!p)
         return;
+    if (p->locks)
+        for (int r = 0; r < p->rh; r++)
+            omp_destroy_lock(&p->locks[r]);
+    free(p->locks);
+    free((void *)p->done);
     free(p->recs);
     free(p);
 }

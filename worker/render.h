@@ -50,16 +50,17 @@ void pf_render_ctx_init(pf_render_ctx_t *ctx, const pf_scene_t *scene, const pf_
  * first), single-threaded (call it from as many threads as you like). */
 void pf_render_tile(const pf_render_ctx_t *ctx, int x0, int y0, int w, int h, float *out);
 
-/* A tile rendered in two steps, for splitting one tile over threads: the
- * first-gather records of the tile and its border (rows 0 ..
- * pf_tile_plan_record_rows - 1, any order, each row once, concurrently if
- * you like), then the tile's rows (any order, concurrently), each written to
- * its own w*3 floats. The pixels are those pf_render_tile gives. */
+/* A tile rendered row by row, for splitting one tile over threads: its rows
+ * in any order, concurrently if you like, each written to its own w*3
+ * floats. A row first makes sure the first-gather records it reads (rows
+ * 0 .. pf_tile_plan_record_rows - 1 of the tile and its border) are done,
+ * recording the missing ones itself; pf_tile_plan_record_row records one
+ * ahead (once; thread-safe). The pixels are those pf_render_tile gives. */
 typedef struct pf_tile_plan pf_tile_plan_t;
 pf_tile_plan_t *pf_tile_plan_new(const pf_render_ctx_t *ctx, int x0, int y0, int w, int h);
 int pf_tile_plan_record_rows(const pf_tile_plan_t *p);
 void pf_tile_plan_record_row(pf_tile_plan_t *p, int row);
-void pf_tile_plan_render_row(const pf_tile_plan_t *p, int row, float *out);
+void pf_tile_plan_render_row(pf_tile_plan_t *p, int row, float *out);
 void pf_tile_plan_free(pf_tile_plan_t *p);
 
 /* Where a tile's time went, for planning (--time-limit): the first-gather
