@@ -139,7 +139,7 @@ int main(int argc, char **argv)
     zmq_send(d, out.data, out.len, 0);
     pthread_join(th, NULL);
     printf("photons           %zu global (+2000 caustic/irradiance)\n", n);
-    printf("blob              %zu bytes, %.2f bytes per photon on the wire (32-byte record + 1 axis byte)\n", blob.len,
+    printf("blob              %zu bytes, %.2f bytes per photon on the wire (32-byte record, split axis inside)\n", blob.len,
            (double)blob.len / (double)(n + 2000));
     printf("serialize         %.3f s\n", t_ser);
     printf("transfer          %.3f s, %.0f MB/s (loopback TCP, 1 MiB chunks, window %u)\n", t_wire,

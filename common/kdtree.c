@@ -1,7 +1,8 @@
 /* kdtree.c: the photon maps' static kd-tree (see kdtree.h for the layout).
  *
- * The tree owns two arrays: the photons, reordered into the implicit median
- * layout, and one split-axis byte per photon; plus the bounds of all positions.
+ * The tree owns one array, the photons reordered into the implicit median
+ * layout, each carrying its node's split axis in its normal's spare bits
+ * (photon.h); plus the bounds of all positions.
  * It is built once, by one caller thread (the top levels of the build run as
  * OpenMP tasks), and then only read: any number of threads may query it at
  * once, and queries allocate nothing.
@@ -58,7 +59,6 @@ static void s_grid_free(s_grid *g);
 
 struct pf_kdtree {
     pf_photon_t *photons;
-    uint8_t *axes;
     size_t n;
     pf_vec3 lo, hi;
     s_grid *grid; /* pf_kdtree_index_nearest's grid, or NULL */
@@ -300,13 +300,12 @@ static void s_bounds(const pf_photon_t *ph, size_t n, pf_vec3 *lo, pf_vec3 *hi)
     *hi = pf_v3(mx[0], mx[1], mx[2]);
 }
 
-static pf_kdtree_t *s_make(pf_photon_t *ph, uint8_t *axes, size_t n)
+static pf_kdtree_t *s_make(pf_photon_t *ph, size_t n)
 {
     pf_kdtree_t *self = malloc(sizeof *self);
     if (!self)
         return NULL;
     self->photons = ph;
-    self->axes = axes;
     self->n = n;
     self->grid = NULL;
     s_bounds(ph, n, &self->lo, &self->hi);
@@ -323,7 +322,7 @@ pf_kdtree_t *pf_kdtree_build(pf_photon_t **photons_p, size_t n)
     s_item_t *items = NULL;
     if (n >= S_MAX_N)
         goto fail;
-    /* One byte even when empty, so that pf_kdtree_axes is never NULL. */
+    /* The axes are written into the photons once they are in tree order. */
     axes = malloc(n ? n : 1);
     items = malloc((n ? n : 1) * sizeof *items);
     if (!axes || !items)
@@ -354,7 +353,11 @@ pf_kdtree_t *pf_kdtree_build(pf_photon_t **photons_p, size_t n)
     items = NULL;
     ph = s_permute(ph, perm, n);
     free(perm);
-    pf_kdtree_t *self = s_make(ph, axes, n);
+    for (size_t i = 0; i < n; i++)
+        pf_photon_set_axis(&ph[i], axes[i]);
+    free(axes);
+    axes = NULL;
+    pf_kdtree_t *self = s_make(ph, n);
     if (!self)
         goto fail;
     return self;
@@ -369,7 +372,7 @@ fail:
  * its ancestors' split planes leave for it (left of a node: coordinate <= the
  * node's on its axis; right: >=). That is the same set of constraints as
  * checking every node against its whole subtree. */
-static int s_layout_ok(const pf_photon_t *ph, const uint8_t *axes, size_t n)
+static int s_layout_ok(const pf_photon_t *ph, size_t n)
 {
     struct {
         uint32_t lo, hi;
@@ -387,7 +390,7 @@ static int s_layout_ok(const pf_photon_t *ph, const uint8_t *axes, size_t n)
                 if (!(p[k] >= bmin[k] && p[k] <= bmax[k]))
                     return 0;
             }
-            int a = axes[m];
+            unsigned a = pf_photon_axis(&ph[m]);
             if (m + 1 < hi) {
                 PF_CHECK(sp < S_STACK);
                 stack[sp].lo = m + 1;
@@ -410,35 +413,27 @@ static int s_layout_ok(const pf_photon_t *ph, const uint8_t *axes, size_t n)
     }
 }
 
-pf_kdtree_t *pf_kdtree_from_layout(pf_photon_t **photons_p, uint8_t **axes_p, size_t n)
+pf_kdtree_t *pf_kdtree_from_layout(pf_photon_t **photons_p, size_t n)
 {
-    PF_CHECK(photons_p && axes_p);
+    PF_CHECK(photons_p);
     pf_photon_t *ph = *photons_p;
-    uint8_t *axes = *axes_p;
     *photons_p = NULL;
-    *axes_p = NULL;
-    if (n >= S_MAX_N || (n > 0 && (!ph || !axes)))
+    if (n >= S_MAX_N || (n > 0 && !ph))
         goto fail;
     for (size_t i = 0; i < n; i++) {
-        if (axes[i] > 2)
+        if (pf_photon_axis(&ph[i]) > 2)
             goto fail;
         if (!isfinite(ph[i].pos[0]) || !isfinite(ph[i].pos[1]) || !isfinite(ph[i].pos[2]))
             goto fail;
     }
-    if (!s_layout_ok(ph, axes, n))
+    if (!s_layout_ok(ph, n))
         goto fail;
-    if (!axes) {
-        axes = malloc(1);
-        if (!axes)
-            goto fail;
-    }
-    pf_kdtree_t *self = s_make(ph, axes, n);
+    pf_kdtree_t *self = s_make(ph, n);
     if (!self)
         goto fail;
     return self;
 fail:
     free(ph);
-    free(axes);
     return NULL;
 }
 
@@ -449,14 +444,12 @@ void pf_kdtree_destroy(pf_kdtree_t **self_p)
     pf_kdtree_t *self = *self_p;
     s_grid_free(self->grid);
     free(self->photons);
-    free(self->axes);
     free(self);
     *self_p = NULL;
 }
 
 size_t pf_kdtree_size(const pf_kdtree_t *self) { return self->n; }
 const pf_photon_t *pf_kdtree_photons(const pf_kdtree_t *self) { return self->photons; }
-const uint8_t *pf_kdtree_axes(const pf_kdtree_t *self) { return self->axes; }
 
 void pf_kdtree_bounds(const pf_kdtree_t *self, pf_vec3 *lo, pf_vec3 *hi)
 {
@@ -529,7 +522,6 @@ size_t pf_kdtree_knn_heap(const pf_kdtree_t *self, pf_vec3 x, size_t k, float ma
     if (!self || self->n == 0 || k == 0 || s_hopeless(x, max_r2))
         return 0;
     const pf_photon_t *ph = self->photons;
-    const uint8_t *axes = self->axes;
     const float q[3] = { x.x, x.y, x.z };
     size_t count = 0;
     float bound = max_r2; /* max_r2 until k are held, then the worst held d2 */
@@ -554,7 +546,7 @@ size_t pf_kdtree_knn_heap(const pf_kdtree_t *self, pf_vec3 x, size_t k, float ma
                     bound = out[0].d2;
                 }
             }
-            int a = axes[m];
+            unsigned a = pf_photon_axis(&ph[m]);
             float diff = q[a] - p[a];
             float plane_d2 = diff * diff;
             uint32_t flo, fhi;
@@ -603,7 +595,6 @@ static int s_nearest_tree(const pf_kdtree_t *self, pf_vec3 x, pf_vec3 n, float m
                           pf_knn_t *out)
 {
     const pf_photon_t *ph = self->photons;
-    const uint8_t *axes = self->axes;
     const float q[3] = { x.x, x.y, x.z };
     pf_knn_t best = { UINT32_MAX, max_r2 };
     int found = 0;
@@ -616,11 +607,11 @@ static int s_nearest_tree(const pf_kdtree_t *self, pf_vec3 x, pf_vec3 n, float m
             const float *p = ph[m].pos;
             float d2 = s_dist2(q, p);
             if ((d2 < best.d2 || (d2 == best.d2 && m < best.index)) &&
-                pf_dot(pf_oct_decode(ph[m].normal), n) >= min_cos) {
+                pf_dot(pf_photon_normal(&ph[m]), n) >= min_cos) {
                 best = (pf_knn_t){ m, d2 };
                 found = 1;
             }
-            int a = axes[m];
+            unsigned a = pf_photon_axis(&ph[m]);
             float diff = q[a] - p[a];
             float plane_d2 = diff * diff;
             uint32_t flo, fhi;
@@ -835,7 +826,7 @@ int pf_kdtree_index_nearest(pf_kdtree_t *self)
         uint64_t key = s_grid_key(s_grid_coord(g, 0, ph->pos[0]), s_grid_coord(g, 1, ph->pos[1]),
                                   s_grid_coord(g, 2, ph->pos[2]));
         s_gcell *c = s_grid_find(g->cells, g->mask, key);
-        pf_vec3 nrm = pf_oct_decode(ph->normal);
+        pf_vec3 nrm = pf_photon_normal(ph);
         g->pts[c->start + c->count++] = (s_gpoint){ { ph->pos[0], ph->pos[1], ph->pos[2] },
                                                     { nrm.x, nrm.y, nrm.z },
                                                     (uint32_t)i,
@@ -910,7 +901,6 @@ size_t pf_kdtree_radius(const pf_kdtree_t *self, pf_vec3 x, float r2, pf_knn_t *
     if (!self || self->n == 0 || s_hopeless(x, r2))
         return 0;
     const pf_photon_t *ph = self->photons;
-    const uint8_t *axes = self->axes;
     const float q[3] = { x.x, x.y, x.z };
     size_t count = 0;
     s_entry_t stack[S_STACK];
@@ -926,7 +916,7 @@ size_t pf_kdtree_radius(const pf_kdtree_t *self, pf_vec3 x, float r2, pf_knn_t *
                     out[count] = (pf_knn_t){ m, d2 };
                 count++;
             }
-            int a = axes[m];
+            unsigned a = pf_photon_axis(&ph[m]);
             float diff = q[a] - p[a];
             uint32_t flo, fhi;
             if (diff < 0.0f) {

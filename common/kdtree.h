@@ -3,8 +3,10 @@
  *
  * Layout: the photons are reordered so that the node of the index range
  * [lo, hi) is its median m = lo + (hi - lo) / 2, split on axis[m]; the left
- * child is [lo, m), the right [m + 1, hi). No pointers, one byte of split axis
- * per photon. The build is deterministic: the split axis is the widest extent
+ * child is [lo, m), the right [m + 1, hi). No pointers and nothing beside the
+ * photons: a node's split axis is kept in its photon record
+ * (pf_photon_axis), so the tree holds 32 bytes per photon and a query reads
+ * one record per node. The build is deterministic: the split axis is the widest extent
  * of the range, and equal coordinates are ordered by the photons' input index,
  * so the same input always gives the same layout, whatever the thread count.
  *
@@ -28,22 +30,23 @@ typedef struct pf_knn {
 
 /* Builds a tree over n photons, taking ownership of *photons_p (malloc'd;
  * *photons_p is set to NULL, also on failure). n may be 0. NULL when out of
- * memory or n >= 2^31. */
+ * memory or n >= 2^31. The photons keep every field but the normal's axis
+ * bits (PF_PHOTON_AXIS_BITS), which the build sets. */
 pf_kdtree_t *pf_kdtree_build(pf_photon_t **photons_p, size_t n);
 
-/* Rebuilds a tree from an existing layout (photons already in tree order and
- * their split axes), e.g. one received over the wire; takes ownership of both
- * arrays. Checks that every axis is 0..2, every position is finite and that
- * the layout satisfies the kd-tree ordering; NULL (arrays freed) otherwise. */
-pf_kdtree_t *pf_kdtree_from_layout(pf_photon_t **photons_p, uint8_t **axes_p, size_t n);
+/* Rebuilds a tree from an existing layout (photons already in tree order,
+ * their split axes set), e.g. one received over the wire; takes ownership of
+ * the array. Checks that every axis is 0..2, every position is finite and
+ * that the layout satisfies the kd-tree ordering; NULL (array freed)
+ * otherwise. */
+pf_kdtree_t *pf_kdtree_from_layout(pf_photon_t **photons_p, size_t n);
 
 /* NULL-safe; sets *self_p = NULL. */
 void pf_kdtree_destroy(pf_kdtree_t **self_p);
 
 size_t pf_kdtree_size(const pf_kdtree_t *self);
-/* The photons in tree order, and their split axes (n bytes). */
+/* The photons in tree order, their split axes set. */
 const pf_photon_t *pf_kdtree_photons(const pf_kdtree_t *self);
-const uint8_t *pf_kdtree_axes(const pf_kdtree_t *self);
 /* Bounds of all photon positions (lo > hi on an empty tree). */
 void pf_kdtree_bounds(const pf_kdtree_t *self, pf_vec3 *lo, pf_vec3 *hi);
 
@@ -59,7 +62,7 @@ size_t pf_kdtree_knn(const pf_kdtree_t *self, pf_vec3 x, size_t k, float max_r2,
 size_t pf_kdtree_knn_heap(const pf_kdtree_t *self, pf_vec3 x, size_t k, float max_r2, pf_knn_t *out);
 
 /* The nearest photon to x within squared distance max_r2 whose stored normal
- * (pf_photon_t.normal, octahedral) has a cosine >= min_cos with unit n; ties
+ * (pf_photon_normal) has a cosine >= min_cos with unit n; ties
  * go to the lower tree index. Returns 1 and fills *out, or 0 if none. The
  * irradiance lookup of every final-gather ray uses it. */
 int pf_kdtree_nearest_normal(const pf_kdtree_t *self, pf_vec3 x, pf_vec3 n, float min_cos, float max_r2,

@@ -1,7 +1,11 @@
 /* photon.h: the compact photon record stored in photon maps and sent to
  * workers, with octahedral unit-vector encoding (Cigolle et al. 2014).
  * The same record holds a precomputed-irradiance point: power then carries
- * irradiance (W/m^2) and dir is unused. 32 bytes, no padding. */
+ * irradiance (W/m^2) and dir the support radius (see photonmap.h).
+ * 32 bytes, no padding: the kd-tree's split axis rides in the normal's two
+ * lowest code bits (bit 0 of each 16-bit half), which leaves the normal 15+15
+ * bits, ample for the agreement tests it serves (worst-case angular error
+ * about 1e-4 rad). */
 #ifndef PF_PHOTON_H
 #define PF_PHOTON_H
 
@@ -14,8 +18,12 @@ typedef struct pf_photon {
     float pos[3];
     float power[3];   /* flux, W per channel (or irradiance, see above) */
     uint32_t dir;     /* direction the photon travelled, octahedral 16+16 bits */
-    uint32_t normal;  /* surface normal on the side the photon arrived from */
+    uint32_t normal;  /* surface normal on the side the photon arrived from (octahedral,
+                       * bits 0 and 16 excluded) and the kd-tree split axis (bits 0 | 16 << 1) */
 } pf_photon_t;
+
+/* The normal's code bits that carry the split axis instead. */
+#define PF_PHOTON_AXIS_BITS 0x00010001u
 
 _Static_assert(sizeof(pf_photon_t) == 32, "pf_photon_t must stay 32 bytes");
 
@@ -54,6 +62,24 @@ static inline pf_vec3 pf_oct_decode(uint32_t code)
         y = ty;
     }
     return pf_norm(pf_v3(x, y, z));
+}
+
+/* The photon's surface normal (unit). */
+static inline pf_vec3 pf_photon_normal(const pf_photon_t *p)
+{
+    return pf_oct_decode(p->normal & ~PF_PHOTON_AXIS_BITS);
+}
+
+/* The kd-tree split axis kept with the photon: 0, 1 or 2 in a tree (3 is
+ * never written; a layout that holds it is refused). */
+static inline unsigned pf_photon_axis(const pf_photon_t *p)
+{
+    return (p->normal & 1u) | ((p->normal >> 15) & 2u);
+}
+
+static inline void pf_photon_set_axis(pf_photon_t *p, unsigned axis)
+{
+    p->normal = (p->normal & ~PF_PHOTON_AXIS_BITS) | (axis & 1u) | ((axis & 2u) << 15);
 }
 
 #endif

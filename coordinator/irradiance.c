@@ -42,7 +42,7 @@ int pf_irradiance_precompute(const pf_kdtree_t *global, int stride, int k, float
             if (!scratch)
                 continue;
             const pf_photon_t *p = &ph[i * (size_t)stride];
-            pf_vec3 nrm = pf_oct_decode(p->normal);
+            pf_vec3 nrm = pf_photon_normal(p);
             float r2 = 0.0f;
             pf_vec3 e = pf_pm_irradiance_hint(global, pf_photon_pos(p), nrm, k, max_r2, hint, scratch, &r2);
             hint = r2 < max_r2 ? 1.44f * r2 : max_r2;

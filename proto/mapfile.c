@@ -4,7 +4,7 @@
  * the kd-tree queries index arrays by what the blob says. So the reader checks
  * the header, sizes every array from the header's counts against the bytes
  * actually there before allocating, compares a content hash, checks every
- * photon and axis, and leaves the kd ordering to pf_kdtree_from_layout.
+ * photon and its split axis, and leaves the kd ordering to pf_kdtree_from_layout.
  *
  * The content hash covers the header fields before it as well as the body
  * (pf_hash_bytes over header bytes 0..147, continued over the body), so a
@@ -30,8 +30,7 @@
 #define S_WHERE "photon-map blob"
 #define S_HASH_OFFSET 148                 /* the content hash's place in the header */
 #define S_HEADER (S_HASH_OFFSET + 8)      /* 156 bytes */
-#define S_RECORD 32                       /* a photon on the wire */
-#define S_PER_PHOTON (S_RECORD + 1)       /* a photon and its axis byte */
+#define S_RECORD 32                       /* a photon on the wire, its split axis included */
 #define S_MAX_COUNT (((uint64_t)1 << 31) - 1) /* the kd-tree's limit */
 
 static const char *const s_map_names[3] = { "global", "caustic", "irradiance" };
@@ -127,8 +126,6 @@ int pf_mapfile_write(const pf_photon_maps_t *maps, uint64_t scene_hash, uint64_t
             W(pf_wr_u32(out, ph[i].dir));
             W(pf_wr_u32(out, ph[i].normal));
         }
-        if (n > 0)
-            W(pf_wr_bytes(out, pf_kdtree_axes(trees[m]), n));
     }
     if (rc != 0) {
         out->len = 0;
@@ -184,20 +181,15 @@ typedef struct s_entry {
     float lo[3], hi[3];
 } s_entry_t;
 
-/* Reads map m's photons and axes from body (already checked to hold them),
+/* Reads map m's photons from body (already checked to hold them),
  * validates each, and rebuilds the tree into *tree. */
 static int s_read_map(int m, const s_entry_t *e, const uint8_t *body, pf_kdtree_t **tree, pf_error_t *err)
 {
     const char *name = s_map_names[m];
     size_t n = (size_t)e->count;
     pf_photon_t *ph = malloc((n ? n : 1) * sizeof *ph);
-    uint8_t *axes = malloc(n ? n : 1);
-    if (!ph || !axes) {
-        free(ph);
-        free(axes);
+    if (!ph)
         return s_fail(err, PF_ENOMEM, "out of memory for the %s map's %zu photons", name, n);
-    }
-    const uint8_t *ax = body + n * S_RECORD;
     int rc = PF_OK;
     for (size_t i = 0; i < n && rc == PF_OK; i++) {
         const uint8_t *p = body + i * S_RECORD;
@@ -218,19 +210,18 @@ static int s_read_map(int m, const s_entry_t *e, const uint8_t *body, pf_kdtree_
                 rc = s_fail(err, PF_EPARSE, "%s photon %zu: power %c %g must be finite and >= 0", name, i, "rgb"[k],
                             (double)ph[i].power[k]);
         }
-        axes[i] = ax[i];
-        if (rc == PF_OK && axes[i] > 2)
-            rc = s_fail(err, PF_EPARSE, "%s photon %zu: split axis %u is not 0, 1 or 2", name, i, (unsigned)axes[i]);
+        if (rc == PF_OK && pf_photon_axis(&ph[i]) > 2)
+            rc = s_fail(err, PF_EPARSE, "%s photon %zu: split axis %u is not 0, 1 or 2", name, i,
+                        pf_photon_axis(&ph[i]));
     }
     if (rc != PF_OK) {
         free(ph);
-        free(axes);
         return rc;
     }
-    /* Takes both arrays, also on failure. Positions and axes were checked
+    /* Takes the array, also on failure. Positions and axes were checked
      * above, so a refusal here is the kd ordering itself (or, barely
      * possible, the tree's own few bytes of memory). */
-    *tree = pf_kdtree_from_layout(&ph, &axes, n);
+    *tree = pf_kdtree_from_layout(&ph, n);
     if (!*tree)
         return s_fail(err, PF_EPARSE, "the %s map's photons are not in kd-tree order", name);
     return PF_OK;
@@ -294,7 +285,7 @@ int pf_mapfile_read(const uint8_t *data, size_t len, uint64_t expect_scene, uint
     }
     /* The counts must account for the body exactly; each is below 2^31, so
      * the sum cannot overflow. Checked before anything is allocated. */
-    uint64_t need = (e[0].count + e[1].count + e[2].count) * S_PER_PHOTON;
+    uint64_t need = (e[0].count + e[1].count + e[2].count) * S_RECORD;
     if (need != len - S_HEADER)
         return s_fail(err, PF_EPARSE,
                       "the counts (global %" PRIu64 ", caustic %" PRIu64 ", irradiance %" PRIu64 ") need %" PRIu64
@@ -313,7 +304,7 @@ int pf_mapfile_read(const uint8_t *data, size_t len, uint64_t expect_scene, uint
     int rc = PF_OK;
     for (int m = 0; m < 3 && rc == PF_OK; m++) {
         rc = s_read_map(m, &e[m], body, &trees[m], err);
-        body += (size_t)e[m].count * S_PER_PHOTON;
+        body += (size_t)e[m].count * S_RECORD;
     }
     if (rc != PF_OK) {
         for (int m = 0; m < 3; m++)

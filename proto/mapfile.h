@@ -11,7 +11,7 @@
  *           u64 content hash: pf_hash_bytes over the header bytes before it,
  *               continued over everything after the header
  *   body:   for each map: count photons (pos 3 f32, power 3 f32, dir u32,
- *           normal u32), then count axis bytes.
+ *           normal u32, whose bits 0 and 16 hold the node's split axis).
  * A reader checks magic, version, record size, that the scene and settings
  * hashes are the ones the job names, radii finite and > 0, counts against the
  * bytes left, the content hash, every position and power finite and power
@@ -26,7 +26,9 @@
 #include "proto/messages.h"
 
 #define PF_MAPFILE_MAGIC 0x50414d46u /* "FMAP" */
-#define PF_MAPFILE_VERSION 1
+/* 2: the split axes moved from a byte array after the photons into the
+ * photons' normal field. */
+#define PF_MAPFILE_VERSION 2
 
 /* Serializes maps into out (reset first). 0 or PF_ENOMEM. */
 int pf_mapfile_write(const pf_photon_maps_t *maps, uint64_t scene_hash, uint64_t settings_hash, pf_buf_t *out);

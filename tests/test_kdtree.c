@@ -109,6 +109,15 @@ static pf_photon_t *s_copy(const void *src, size_t bytes)
 
 /* ---- reference rules ---- */
 
+/* The same photon record, the split-axis bits of the normal aside. */
+static int s_same_record(const pf_photon_t *a, const pf_photon_t *b)
+{
+    pf_photon_t x = *a, y = *b;
+    x.normal &= ~PF_PHOTON_AXIS_BITS;
+    y.normal &= ~PF_PHOTON_AXIS_BITS;
+    return memcmp(&x, &y, sizeof x) == 0;
+}
+
 /* The documented distance: float differences, squares summed in double. */
 static float s_ref_d2(pf_vec3 x, const pf_photon_t *p)
 {
@@ -125,7 +134,7 @@ static int s_key_less(const pf_photon_t *a, const pf_photon_t *b, int axis)
 }
 
 /* Checks axis choice and median rule for the subtree of [lo, hi). */
-static void s_check_subtree(const pf_photon_t *ph, const uint8_t *axes, size_t lo, size_t hi, int *bad)
+static void s_check_subtree(const pf_photon_t *ph, size_t lo, size_t hi, int *bad)
 {
     if (lo >= hi || *bad)
         return;
@@ -140,8 +149,9 @@ static void s_check_subtree(const pf_photon_t *ph, const uint8_t *axes, size_t l
     for (int a = 1; a < 3; a++)
         if (mx[a] - mn[a] > mx[want] - mn[want])
             want = a;
-    if (axes[m] != want) {
-        CHECK(axes[m] == want, "range [%zu,%zu): axis %d, widest is %d", lo, hi, axes[m], want);
+    int axis = (int)pf_photon_axis(&ph[m]);
+    if (axis != want) {
+        CHECK(axis == want, "range [%zu,%zu): axis %d, widest is %d", lo, hi, axis, want);
         *bad = 1;
         return;
     }
@@ -155,22 +165,20 @@ static void s_check_subtree(const pf_photon_t *ph, const uint8_t *axes, size_t l
             return;
         }
     }
-    s_check_subtree(ph, axes, lo, m, bad);
-    s_check_subtree(ph, axes, m + 1, hi, bad);
+    s_check_subtree(ph, lo, m, bad);
+    s_check_subtree(ph, m + 1, hi, bad);
 }
 
 static void s_check_layout(const pf_kdtree_t *t, const pf_photon_t *input, size_t n, const char *what)
 {
     CHECK(pf_kdtree_size(t) == n, "%s: size", what);
     const pf_photon_t *ph = pf_kdtree_photons(t);
-    const uint8_t *axes = pf_kdtree_axes(t);
-    CHECK(axes != NULL, "%s: axes pointer", what);
-    /* A permutation of the input, records intact. */
+    /* A permutation of the input, records intact but for the axis bits. */
     unsigned char *seen = calloc(n ? n : 1, 1);
     int perm_ok = 1;
     for (size_t i = 0; i < n && perm_ok; i++) {
         uint32_t id = ph[i].dir;
-        if (id >= n || seen[id] || memcmp(&ph[i], &input[id], sizeof ph[i]) != 0)
+        if (id >= n || seen[id] || !s_same_record(&ph[i], &input[id]))
             perm_ok = 0;
         else
             seen[id] = 1;
@@ -180,7 +188,7 @@ static void s_check_layout(const pf_kdtree_t *t, const pf_photon_t *input, size_
     if (!perm_ok)
         return;
     int bad = 0;
-    s_check_subtree(ph, axes, 0, n, &bad);
+    s_check_subtree(ph, 0, n, &bad);
     CHECK(!bad, "%s: layout rules", what);
     /* Bounds. */
     pf_vec3 lo, hi;
@@ -365,24 +373,21 @@ static void s_test_set(int kind, size_t n, int nrandom)
     if (kind == SET_COINCIDENT || kind == SET_LINE) {
         int ok = 1;
         for (size_t i = 0; i < n; i++)
-            ok &= pf_kdtree_photons(t)[i].dir == i && pf_kdtree_axes(t)[i] == 0;
+            ok &= pf_kdtree_photons(t)[i].dir == i && pf_photon_axis(&pf_kdtree_photons(t)[i]) == 0;
         CHECK(ok, "%s: presorted input must keep its order, all axes 0", what);
     }
 
     pf_kdtree_t *t2 = s_build_copy(input, n);
-    CHECK(t2 && memcmp(pf_kdtree_photons(t), pf_kdtree_photons(t2), n * sizeof(pf_photon_t)) == 0 &&
-              memcmp(pf_kdtree_axes(t), pf_kdtree_axes(t2), n) == 0,
+    CHECK(t2 && memcmp(pf_kdtree_photons(t), pf_kdtree_photons(t2), n * sizeof(pf_photon_t)) == 0,
           "%s: rebuild differs", what);
     pf_kdtree_destroy(&t2);
 
     pf_photon_t *lph = s_copy(pf_kdtree_photons(t), n * sizeof(pf_photon_t));
-    uint8_t *lax = (uint8_t *)s_copy(pf_kdtree_axes(t), n);
-    pf_kdtree_t *t3 = pf_kdtree_from_layout(&lph, &lax, n);
-    CHECK(lph == NULL && lax == NULL, "%s: from_layout must take the arrays", what);
+    pf_kdtree_t *t3 = pf_kdtree_from_layout(&lph, n);
+    CHECK(lph == NULL, "%s: from_layout must take the array", what);
     CHECK(t3 != NULL, "%s: from_layout rejects a built layout", what);
     if (t3) {
-        CHECK(memcmp(pf_kdtree_photons(t), pf_kdtree_photons(t3), n * sizeof(pf_photon_t)) == 0 &&
-                  memcmp(pf_kdtree_axes(t), pf_kdtree_axes(t3), n) == 0,
+        CHECK(memcmp(pf_kdtree_photons(t), pf_kdtree_photons(t3), n * sizeof(pf_photon_t)) == 0,
               "%s: from_layout changed the layout", what);
         pf_vec3 a, b, c, d;
         pf_kdtree_bounds(t, &a, &b);
@@ -430,15 +435,13 @@ static void s_test_nonfinite(size_t n)
     }
     s_check_queries(t, 30, what);
     pf_kdtree_t *t2 = s_build_copy(input, n);
-    CHECK(t2 && memcmp(pf_kdtree_photons(t), pf_kdtree_photons(t2), n * sizeof(pf_photon_t)) == 0 &&
-              memcmp(pf_kdtree_axes(t), pf_kdtree_axes(t2), n) == 0,
+    CHECK(t2 && memcmp(pf_kdtree_photons(t), pf_kdtree_photons(t2), n * sizeof(pf_photon_t)) == 0,
           "%s: rebuild differs", what);
     pf_kdtree_destroy(&t2);
     /* Such a layout cannot come back over the wire. */
     if (n > 3) {
         pf_photon_t *lph = s_copy(pf_kdtree_photons(t), n * sizeof(pf_photon_t));
-        uint8_t *lax = (uint8_t *)s_copy(pf_kdtree_axes(t), n);
-        pf_kdtree_t *t3 = pf_kdtree_from_layout(&lph, &lax, n);
+        pf_kdtree_t *t3 = pf_kdtree_from_layout(&lph, n);
         CHECK(t3 == NULL, "%s: from_layout must reject non-finite positions", what);
         pf_kdtree_destroy(&t3);
     }
@@ -449,12 +452,11 @@ static void s_test_nonfinite(size_t n)
 /* ---- pf_kdtree_from_layout ---- */
 
 /* Tries a layout (copied) and reports whether it was accepted. */
-static int s_accepts(const pf_photon_t *ph, const uint8_t *axes, size_t n)
+static int s_accepts(const pf_photon_t *ph, size_t n)
 {
     pf_photon_t *p = s_copy(ph, n * sizeof *ph);
-    uint8_t *a = (uint8_t *)s_copy(axes, n);
-    pf_kdtree_t *t = pf_kdtree_from_layout(&p, &a, n);
-    CHECK(p == NULL && a == NULL, "from_layout must take the arrays, also when it fails");
+    pf_kdtree_t *t = pf_kdtree_from_layout(&p, n);
+    CHECK(p == NULL, "from_layout must take the array, also when it fails");
     int ok = t != NULL;
     pf_kdtree_destroy(&t);
     return ok;
@@ -480,32 +482,35 @@ static void s_test_from_layout(void)
     pf_photon_t *input = s_make_set(SET_UNIFORM, n);
     pf_kdtree_t *t = s_build_copy(input, n);
     const pf_photon_t *tp = pf_kdtree_photons(t);
-    const uint8_t *ta = pf_kdtree_axes(t);
     pf_photon_t *ph = s_copy(tp, n * sizeof *ph);
-    uint8_t *ax = (uint8_t *)s_copy(ta, n);
-    CHECK(s_accepts(ph, ax, n), "own layout");
+    CHECK(s_accepts(ph, n), "own layout");
 
-    ax[417] = 3;
-    CHECK(!s_accepts(ph, ax, n), "axis 3");
-    ax[417] = 255;
-    CHECK(!s_accepts(ph, ax, n), "axis 255");
-    ax[417] = ta[417];
+    pf_photon_set_axis(&ph[417], 3);
+    CHECK(pf_photon_axis(&ph[417]) == 3 && !s_accepts(ph, n), "axis 3");
+    ph[417] = tp[417];
+    /* The axis bits leave the normal's code alone, and the normal leaves
+     * the axis alone. */
+    pf_photon_t q = tp[417];
+    pf_photon_set_axis(&q, 2);
+    CHECK(pf_photon_axis(&q) == 2 && (q.normal & ~PF_PHOTON_AXIS_BITS) == (tp[417].normal & ~PF_PHOTON_AXIS_BITS),
+          "axis bits");
 
     ph[123].pos[1] = NAN;
-    CHECK(!s_accepts(ph, ax, n), "NaN position");
+    CHECK(!s_accepts(ph, n), "NaN position");
     ph[123].pos[1] = INFINITY;
-    CHECK(!s_accepts(ph, ax, n), "infinite position");
+    CHECK(!s_accepts(ph, n), "infinite position");
     ph[123].pos[1] = -INFINITY;
-    CHECK(!s_accepts(ph, ax, n), "-infinite position");
+    CHECK(!s_accepts(ph, n), "-infinite position");
     ph[123] = tp[123];
 
     /* Swap the root with the first photon, which lies strictly on the low side
      * of it on the root's axis (random coordinates are distinct). */
     size_t root = n / 2;
-    CHECK(tp[0].pos[ta[root]] < tp[root].pos[ta[root]], "test premise");
-    ph[0] = tp[root];
-    ph[root] = tp[0];
-    CHECK(!s_accepts(ph, ax, n), "swapped root and first photon");
+    unsigned ra = pf_photon_axis(&tp[root]);
+    CHECK(tp[0].pos[ra] < tp[root].pos[ra], "test premise");
+    memcpy(ph[0].pos, tp[root].pos, sizeof ph[0].pos);
+    memcpy(ph[root].pos, tp[0].pos, sizeof ph[root].pos);
+    CHECK(!s_accepts(ph, n), "swapped root and first photon");
     memcpy(ph, tp, n * sizeof *ph);
 
     /* Swap two siblings: the leaves either side of each node of a 3-photon
@@ -516,34 +521,34 @@ static void s_test_from_layout(void)
     int rejected_all = 1;
     for (size_t b = 0; b < nbottom; b++) {
         size_t m = bottom[b], l = m - 1, r = m + 1;
-        if (tp[l].pos[ta[m]] == tp[r].pos[ta[m]])
+        unsigned ma = pf_photon_axis(&tp[m]);
+        if (tp[l].pos[ma] == tp[r].pos[ma])
             continue;
-        ph[l] = tp[r];
-        ph[r] = tp[l];
-        rejected_all &= !s_accepts(ph, ax, n);
+        /* Positions swapped, each record keeping its own (leaf) axis. */
+        memcpy(ph[l].pos, tp[r].pos, sizeof ph[l].pos);
+        memcpy(ph[r].pos, tp[l].pos, sizeof ph[r].pos);
+        rejected_all &= !s_accepts(ph, n);
         ph[l] = tp[l];
         ph[r] = tp[r];
     }
     CHECK(rejected_all, "swapped sibling leaves");
-    CHECK(s_accepts(ph, ax, n), "restored layout");
+    CHECK(s_accepts(ph, n), "restored layout");
 
     /* A leaf's axis does not matter: any value 0..2 is a valid layout. */
-    ax[0] = (uint8_t)((ta[0] + 1) % 3);
-    CHECK(s_accepts(ph, ax, n), "leaf with another axis");
-    ax[0] = ta[0];
+    pf_photon_set_axis(&ph[0], (pf_photon_axis(&tp[0]) + 1) % 3);
+    CHECK(s_accepts(ph, n), "leaf with another axis");
+    ph[0] = tp[0];
 
     /* Sizes the tree cannot index are refused before the arrays are read
      * (these are far shorter than the size claimed). */
     {
         pf_photon_t *bp = s_copy(ph, 4 * sizeof *bp);
-        uint8_t *ba = (uint8_t *)s_copy(ax, 4);
-        pf_kdtree_t *bt = pf_kdtree_from_layout(&bp, &ba, (size_t)1 << 31);
-        CHECK(bt == NULL && bp == NULL && ba == NULL, "n = 2^31");
+        pf_kdtree_t *bt = pf_kdtree_from_layout(&bp, (size_t)1 << 31);
+        CHECK(bt == NULL && bp == NULL, "n = 2^31");
         pf_kdtree_destroy(&bt);
     }
 
     free(ph);
-    free(ax);
     pf_kdtree_destroy(&t);
     free(input);
 
@@ -554,22 +559,23 @@ static void s_test_from_layout(void)
     uint8_t hax[7] = { 0, 1, 0, 0, 0, 1, 0 };
     float pos[7][3] = { { -1, -1, 0 }, { -2, 0, 0 }, { -1, 1, 0 }, { 0, 0, 0 }, { 1, -1, 0 }, { 2, 0, 0 }, { 1, 1, 0 } };
     memset(h, 0, sizeof h);
-    for (int i = 0; i < 7; i++)
+    for (int i = 0; i < 7; i++) {
         memcpy(h[i].pos, pos[i], sizeof pos[i]);
-    CHECK(s_accepts(h, hax, 7), "hand layout");
+        pf_photon_set_axis(&h[i], hax[i]);
+    }
+    CHECK(s_accepts(h, 7), "hand layout");
     h[2].pos[0] = 1.0f;
-    CHECK(!s_accepts(h, hax, 7), "hand layout violating the grandparent");
+    CHECK(!s_accepts(h, 7), "hand layout violating the grandparent");
     h[2].pos[0] = 0.0f; /* equal to the root's coordinate is allowed */
-    CHECK(s_accepts(h, hax, 7), "hand layout with a coordinate equal to the root's");
+    CHECK(s_accepts(h, 7), "hand layout with a coordinate equal to the root's");
     h[4].pos[0] = 0.0f;
-    CHECK(s_accepts(h, hax, 7), "equal coordinates on both sides");
+    CHECK(s_accepts(h, 7), "equal coordinates on both sides");
     h[4].pos[0] = -0.5f;
-    CHECK(!s_accepts(h, hax, 7), "right subtree below the root");
+    CHECK(!s_accepts(h, 7), "right subtree below the root");
 
     /* Empty layouts, with or without arrays. */
     pf_photon_t *np = NULL;
-    uint8_t *na = NULL;
-    pf_kdtree_t *e = pf_kdtree_from_layout(&np, &na, 0);
+    pf_kdtree_t *e = pf_kdtree_from_layout(&np, 0);
     CHECK(e && pf_kdtree_size(e) == 0 && pf_kdtree_knn(e, pf_v3s(0), 3, INFINITY, NULL) == 0,
           "empty layout");
     pf_kdtree_destroy(&e);
@@ -590,7 +596,6 @@ static void s_test_from_layout(void)
 #define pf_kdtree_destroy s_fallback_destroy
 #define pf_kdtree_size s_fallback_size
 #define pf_kdtree_photons s_fallback_photons
-#define pf_kdtree_axes s_fallback_axes
 #define pf_kdtree_bounds s_fallback_bounds
 #define pf_kdtree_knn s_fallback_knn
 #define pf_kdtree_knn_heap s_fallback_knn_heap
@@ -603,7 +608,6 @@ static void s_test_from_layout(void)
 #undef pf_kdtree_destroy
 #undef pf_kdtree_size
 #undef pf_kdtree_photons
-#undef pf_kdtree_axes
 #undef pf_kdtree_bounds
 #undef pf_kdtree_knn
 #undef pf_kdtree_knn_heap
@@ -615,8 +619,7 @@ static void s_test_fallback(int kind, size_t n)
     pf_kdtree_t *t = s_build_copy(input, n);
     pf_photon_t *ph = s_copy(input, n * sizeof *input);
     pf_kdtree_t *f = s_fallback_build(&ph, n);
-    CHECK(t && f && memcmp(pf_kdtree_photons(t), s_fallback_photons(f), n * sizeof(pf_photon_t)) == 0 &&
-              memcmp(pf_kdtree_axes(t), s_fallback_axes(f), n) == 0,
+    CHECK(t && f && memcmp(pf_kdtree_photons(t), s_fallback_photons(f), n * sizeof(pf_photon_t)) == 0,
           "%s n=%zu: heapsort fallback builds another layout", s_set_names[kind], n);
     pf_kdtree_destroy(&t);
     s_fallback_destroy(&f);
@@ -665,8 +668,7 @@ static void s_test_threads(void)
     omp_set_num_threads(saved);
     CHECK(t1 && t4, "large builds");
     if (t1 && t4) {
-        CHECK(memcmp(pf_kdtree_photons(t1), pf_kdtree_photons(t4), n * sizeof(pf_photon_t)) == 0 &&
-                  memcmp(pf_kdtree_axes(t1), pf_kdtree_axes(t4), n) == 0,
+        CHECK(memcmp(pf_kdtree_photons(t1), pf_kdtree_photons(t4), n * sizeof(pf_photon_t)) == 0,
               "1 and 4 threads build different layouts");
         s_check_layout(t4, input, n, "clustered n=300000");
         /* A few queries against brute force at this size. */
@@ -730,7 +732,7 @@ static void s_test_nearest_normal(int kind, size_t n, int nq, int indexed)
         for (size_t i = 0; i < n; i++) {
             double dx = x.x - ph[i].pos[0], dy = x.y - ph[i].pos[1], dz = x.z - ph[i].pos[2];
             float d2 = (float)(dx * dx + dy * dy + dz * dz);
-            if (d2 > r2 || pf_dot(pf_oct_decode(ph[i].normal), nn) < min_cos)
+            if (d2 > r2 || pf_dot(pf_photon_normal(&ph[i]), nn) < min_cos)
                 continue;
             if (!want || d2 < best.d2 || (d2 == best.d2 && i < best.index)) {
                 best = (pf_knn_t){ (uint32_t)i, d2 };

@@ -1227,7 +1227,7 @@ static long s_nearest_normal(const pf_kdtree_t *t, pf_vec3 x, pf_vec3 nrm, float
     float bd = INFINITY;
     for (size_t i = 0; i < n; i++) {
         float d2 = s_d2(&ph[i], x);
-        if (!(d2 <= max_r2) || pf_dot(pf_oct_decode(ph[i].normal), nrm) < min_cos)
+        if (!(d2 <= max_r2) || pf_dot(pf_photon_normal(&ph[i]), nrm) < min_cos)
             continue;
         if (d2 < bd) {
             bd = d2;
@@ -1384,7 +1384,7 @@ static void s_kdtree_large(size_t n)
     CHECK(t != NULL, "%zu-photon tree", n);
     if (!t)
         return;
-    double held = (double)(sizeof(pf_photon_t) + 1); /* the layout: photon + one axis byte */
+    double held = (double)sizeof(pf_photon_t); /* the layout: the records, split axes inside */
     printf("kd-tree, %zu random photons: build %.2f s (%.1f M photons/s); the tree holds %.0f bytes per photon "
            "(%.0f MB); resident %.1f bytes per photon after the build, peak during it %.1f bytes per photon "
            "(input included)\n",
