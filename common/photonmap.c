@@ -4,6 +4,7 @@
  * reproducible bit for bit. */
 #include "common/photonmap.h"
 
+#include <stddef.h>
 #include <string.h>
 
 #include "common/bsdf.h"
@@ -25,46 +26,137 @@ int pf_photon_maps_index(pf_photon_maps_t *maps)
     return maps->irradiance ? pf_kdtree_index_nearest(maps->irradiance) : PF_OK;
 }
 
-/* Gathers up to k photons; returns how many lie inside the disc and its
- * radius squared. */
-static size_t s_gather(const pf_kdtree_t *map, pf_vec3 x, int k, float max_r2, float hint_r2, pf_knn_t *scratch,
+/* An entry as one integer in (d2, index) order, the order of the k nearest: a squared distance is >= 0
+ * (or NaN, never returned by a search), so its bits order as it does. */
+static inline uint64_t s_knn_key(const pf_knn_t *e)
+{
+    uint32_t b;
+    memcpy(&b, &e->d2, sizeof b);
+    return (uint64_t)b << 32 | e->index;
+}
+
+/* The key of rank r (0-based) of keys[0, n), r < n; reorders keys.
+ * Quickselect with a branch-free Lomuto partition (the comparisons' outcomes
+ * are random, so branching on them would mispredict half the time). */
+static uint64_t s_rank(uint64_t *keys, size_t n, size_t r)
+{
+    size_t lo = 0, hi = n; /* the rank lies in [lo, hi) */
+    while (hi - lo > 1) {
+        size_t mid = lo + (hi - lo) / 2;
+        uint64_t t = keys[mid];
+        keys[mid] = keys[hi - 1];
+        keys[hi - 1] = t;
+        size_t store = lo;
+        for (size_t i = lo; i < hi - 1; i++) {
+            uint64_t v = keys[i];
+            int less = v < t;
+            keys[i] = keys[store];
+            keys[store] = v;
+            store += (size_t)less;
+        }
+        keys[hi - 1] = keys[store];
+        keys[store] = t;
+        if (r == store)
+            return t;
+        if (r < store)
+            hi = store;
+        else
+            lo = store + 1;
+    }
+    return keys[lo];
+}
+
+/* Keeps, in place and in order, the entries of a[0, n) with keys below
+ * kth's. */
+static size_t s_keep_before(pf_knn_t *a, size_t n, uint64_t kth)
+{
+    size_t m = 0;
+    for (size_t i = 0; i < n; i++) {
+        pf_knn_t e = a[i];
+        a[m] = e;
+        m += (size_t)(s_knn_key(&e) < kth);
+    }
+    return m;
+}
+
+/* The photons of an estimate: the k - 1 nearest to x (the k-th only marks
+ * the radius, *r2: for photons of density lambda, E[(k - 1) / (pi r_k^2)] =
+ * lambda, while counting all k overestimates by k / (k - 1), 1 % at k = 100,
+ * which the furnace shows), or all within max_r2 (*r2 = max_r2) when fewer
+ * than k lie there, or for k = 1 the nearest over max_r2; returns how many,
+ * in scratch (PF_PM_SCRATCH entries).
+ *
+ * They come in the radius search's order (a pre-order walk of the tree,
+ * nearer child first), which does not depend on the radius searched: a larger
+ * one only adds subtrees. So the sums over them, and the estimates, are the
+ * same bits whatever the hint (or a thread's previous query) was.
+ *
+ * With a hint (a guess at the k-th photon's squared distance, from a nearby
+ * estimate) the photons within it are collected and the k-th picked by
+ * selection, cheaper than keeping a heap; when the hint holds fewer than k
+ * (or too many to keep) the k-th is found by a heap search without it, and
+ * the photons before it collected within its distance. */
+static size_t s_gather(const pf_kdtree_t *map, pf_vec3 x, int k, float max_r2, float hint_r2, pf_pm_scratch_t *scratch,
                        float *r2)
 {
+    *r2 = max_r2;
     if (!map || pf_kdtree_size(map) == 0 || k <= 0)
         return 0;
     if (k > PF_MAX_K)
         k = PF_MAX_K;
-    size_t n = 0;
-    /* k photons within the hint are the k nearest of all (every photon
-     * closer than the k-th is within it too), ties and all; otherwise the
-     * search is repeated without it. Unsorted: the heap's root is the k-th. */
+    const size_t cap = PF_PM_FOUND, kk = (size_t)k;
+    pf_knn_t *found = scratch->found;
+    uint64_t kth;
+    size_t c = 0;
     if (hint_r2 < max_r2)
-        n = pf_kdtree_knn_heap(map, x, (size_t)k, hint_r2, scratch);
-    if (n < (size_t)k)
-        n = pf_kdtree_knn_heap(map, x, (size_t)k, max_r2, scratch);
-    if (n == (size_t)k && k > 1) {
-        /* The k-th photon only marks the radius: for photons of density
-         * lambda, E[(k - 1) / (pi r_k^2)] = lambda, while counting all k
-         * overestimates by k / (k - 1) (1 % at k = 100; the furnace shows it).
-         * It moves to the end, out of the n - 1 the estimate sums. */
-        pf_knn_t kth = scratch[0];
-        scratch[0] = scratch[n - 1];
-        scratch[n - 1] = kth;
-        *r2 = kth.d2;
-        return n - 1;
+        c = pf_kdtree_radius(map, x, hint_r2, found, cap);
+    if (c >= kk && c <= cap) {
+        for (size_t i = 0; i < c; i++)
+            scratch->keys[i] = s_knn_key(&found[i]);
+        kth = s_rank(scratch->keys, c, kk - 1);
+    } else {
+        size_t n = pf_kdtree_knn_heap(map, x, kk, max_r2, found);
+        if (n < kk) {
+            /* All of them: the same set within max_r2, in walk order. */
+            c = pf_kdtree_radius(map, x, max_r2, found, cap);
+            PF_DCHECK(c == n);
+            return c;
+        }
+        kth = s_knn_key(&found[0]); /* the heap's root: the k-th */
+        float kth_d2 = found[0].d2;
+        c = pf_kdtree_radius(map, x, kth_d2, found, cap);
+        if (c > cap) {
+            /* More than cap photons at the k-th's very distance (coincident
+             * photons): the heap's own k - 1, in its order. */
+            pf_kdtree_knn_heap(map, x, kk, max_r2, found);
+            found[0] = found[kk - 1];
+            *r2 = kth_d2;
+            return kk - 1;
+        }
     }
-    *r2 = max_r2;
-    return n;
+    if (kk == 1) {
+        /* k = 1: the nearest photon, over the max_r2 disc (a radius marked
+         * by the only photon would leave none to sum). */
+        found[0].index = (uint32_t)kth;
+        uint32_t bits = (uint32_t)(kth >> 32);
+        memcpy(&found[0].d2, &bits, sizeof bits);
+        return 1;
+    }
+    uint32_t bits = (uint32_t)(kth >> 32);
+    memcpy(r2, &bits, sizeof bits);
+    size_t m = s_keep_before(found, c, kth);
+    PF_DCHECK(m == kk - 1);
+    return m;
 }
 
-pf_vec3 pf_pm_irradiance(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int k, float max_r2, pf_knn_t *scratch,
+pf_vec3 pf_pm_irradiance(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int k, float max_r2, pf_pm_scratch_t *scratch,
                          float *r2_out)
 {
     return pf_pm_irradiance_hint(map, x, n, k, max_r2, max_r2, scratch, r2_out);
 }
 
 pf_vec3 pf_pm_irradiance_hint(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int k, float max_r2, float hint_r2,
-                              pf_knn_t *scratch, float *r2_out)
+                              pf_pm_scratch_t *scratch, float *r2_out)
 {
     float r2 = max_r2;
     size_t cnt = s_gather(map, x, k, max_r2, hint_r2, scratch, &r2);
@@ -75,7 +167,7 @@ pf_vec3 pf_pm_irradiance_hint(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int 
     const pf_photon_t *ph = pf_kdtree_photons(map);
     double s[3] = { 0, 0, 0 };
     for (size_t i = 0; i < cnt; i++) {
-        const pf_photon_t *p = &ph[scratch[i].index];
+        const pf_photon_t *p = &ph[scratch->found[i].index];
         if (pf_dot(pf_photon_normal(p), n) < PF_NORMAL_AGREE)
             continue;
         s[0] += p->power[0];
@@ -87,7 +179,7 @@ pf_vec3 pf_pm_irradiance_hint(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int 
 }
 
 pf_vec3 pf_pm_irradiance_cone(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int k, float max_r2, float hint_r2,
-                              pf_knn_t *scratch, float *r2_out)
+                              pf_pm_scratch_t *scratch, float *r2_out)
 {
     float r2 = max_r2;
     size_t cnt = s_gather(map, x, k, max_r2, hint_r2, scratch, &r2);
@@ -99,10 +191,10 @@ pf_vec3 pf_pm_irradiance_cone(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int 
     double r = sqrt((double)r2);
     double s[3] = { 0, 0, 0 };
     for (size_t i = 0; i < cnt; i++) {
-        const pf_photon_t *p = &ph[scratch[i].index];
+        const pf_photon_t *p = &ph[scratch->found[i].index];
         if (pf_dot(pf_photon_normal(p), n) < PF_NORMAL_AGREE)
             continue;
-        double w = 1.0 - sqrt((double)scratch[i].d2) / r;
+        double w = 1.0 - sqrt((double)scratch->found[i].d2) / r;
         if (w <= 0.0)
             continue;
         s[0] += w * p->power[0];
@@ -115,7 +207,7 @@ pf_vec3 pf_pm_irradiance_cone(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int 
 }
 
 pf_vec3 pf_pm_radiance(const pf_kdtree_t *map, const struct pf_material *m, pf_vec3 x, pf_vec3 n, pf_vec3 wo, int k,
-                       float max_r2, pf_knn_t *scratch)
+                       float max_r2, pf_pm_scratch_t *scratch)
 {
     float r2 = 0.0f;
     size_t cnt = s_gather(map, x, k, max_r2, max_r2, scratch, &r2);
@@ -124,7 +216,7 @@ pf_vec3 pf_pm_radiance(const pf_kdtree_t *map, const struct pf_material *m, pf_v
     const pf_photon_t *ph = pf_kdtree_photons(map);
     double s[3] = { 0, 0, 0 };
     for (size_t i = 0; i < cnt; i++) {
-        const pf_photon_t *p = &ph[scratch[i].index];
+        const pf_photon_t *p = &ph[scratch->found[i].index];
         if (pf_dot(pf_photon_normal(p), n) < PF_NORMAL_AGREE)
             continue;
         pf_vec3 wi = pf_neg(pf_oct_decode(p->dir));

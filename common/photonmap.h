@@ -32,23 +32,31 @@ void pf_photon_maps_free(pf_photon_maps_t *maps);
 /* Photons whose stored normal has a cosine below this with the query normal
  * lie on another surface (or the other side) and are left out of estimates. */
 #define PF_NORMAL_AGREE 0.7f
-/* Most photons one estimate may gather (bounds the caller's scratch). */
+/* Most photons one estimate may gather. */
 #define PF_MAX_K 1024
+/* The working memory every estimate below takes (one per thread): the
+ * photons within a search radius, and their keys to select the k-th among. */
+#define PF_PM_FOUND (2 * PF_MAX_K)
+typedef struct pf_pm_scratch {
+    pf_knn_t found[PF_PM_FOUND];
+    uint64_t keys[PF_PM_FOUND];
+} pf_pm_scratch_t;
 
 /* Irradiance (W/m^2) at x on the surface with unit normal n: the flux of the
  * k - 1 nearest photons whose normals agree, over the disc pi r^2, r the
  * distance to the k-th photon (unbiased for a uniform density); when fewer
  * than k lie within max_r2, all of them over pi max_r2.
- * scratch holds k entries; k <= PF_MAX_K. */
-pf_vec3 pf_pm_irradiance(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int k, float max_r2, pf_knn_t *scratch,
+ * k <= PF_MAX_K (more is taken as PF_MAX_K). The photons are summed in an order that depends only on the
+ * map and x, so the estimate does too, bit for bit. */
+pf_vec3 pf_pm_irradiance(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int k, float max_r2, pf_pm_scratch_t *scratch,
                          float *r2_out);
 
 /* The same estimate, searched first within hint_r2 (a guess at the k-th
  * photon's squared distance, from a nearby estimate): the same result as
- * pf_pm_irradiance, faster when the guess holds k photons, a second search
- * when it does not. */
+ * pf_pm_irradiance, bit for bit, faster when the guess holds k photons (and
+ * not many times more), a second search when it does not. */
 pf_vec3 pf_pm_irradiance_hint(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int k, float max_r2, float hint_r2,
-                              pf_knn_t *scratch, float *r2_out);
+                              pf_pm_scratch_t *scratch, float *r2_out);
 
 /* The radius of the disc an irradiance point's estimate averaged over (its
  * support), kept in the point's otherwise unused direction field. */
@@ -64,7 +72,7 @@ static inline float pf_irradiance_radius(const pf_photon_t *p)
  * The squared radius the estimate used goes to *r2_out unless NULL; hint_r2
  * as in pf_pm_irradiance_hint (max_r2 or more: none). */
 pf_vec3 pf_pm_irradiance_cone(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int k, float max_r2, float hint_r2,
-                              pf_knn_t *scratch, float *r2_out);
+                              pf_pm_scratch_t *scratch, float *r2_out);
 
 /* Reflected radiance towards wo at x for a DIFFUSE material with a Phong
  * lobe, from the photons' directions (Jensen's original estimate): sum of
@@ -72,6 +80,6 @@ pf_vec3 pf_pm_irradiance_cone(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int 
  * represent the reflection (glossy surfaces). */
 struct pf_material;
 pf_vec3 pf_pm_radiance(const pf_kdtree_t *map, const struct pf_material *m, pf_vec3 x, pf_vec3 n, pf_vec3 wo, int k,
-                       float max_r2, pf_knn_t *scratch);
+                       float max_r2, pf_pm_scratch_t *scratch);
 
 #endif

@@ -29,7 +29,7 @@ int pf_irradiance_precompute(const pf_kdtree_t *global, int stride, int k, float
 #pragma omp parallel num_threads(threads)
     {
         pf_accel_thread_init();
-        pf_knn_t *scratch = malloc((size_t)(k > 0 ? k : 1) * sizeof *scratch);
+        pf_pm_scratch_t *scratch = malloc(sizeof *scratch);
         /* Points in tree order are near each other: the last estimate's
          * radius, widened by 1.5, bounds the next search (same results). */
         float hint = max_r2;

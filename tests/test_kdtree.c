@@ -290,6 +290,29 @@ static void s_check_radius(const pf_kdtree_t *t, pf_vec3 x, const pf_knn_t *all,
     }
 }
 
+/* The radius search's order does not depend on the radius: the photons
+ * found within r2 come in the same relative order within a larger r2_big
+ * (the estimates' sums rely on it to be the same bits for any search hint). */
+static void s_check_radius_order(const pf_kdtree_t *t, pf_vec3 x, float r2, float r2_big, const char *what)
+{
+    size_t n = pf_kdtree_size(t);
+    pf_knn_t *small = malloc((n + 1) * sizeof *small), *big = malloc((n + 1) * sizeof *big);
+    uint32_t *pos = malloc((n + 1) * sizeof *pos);
+    size_t ns = pf_kdtree_radius(t, x, r2, small, n), nb = pf_kdtree_radius(t, x, r2_big, big, n);
+    int ok = ns <= nb;
+    for (size_t i = 0; i < n; i++)
+        pos[i] = UINT32_MAX;
+    for (size_t i = 0; ok && i < nb; i++)
+        pos[big[i].index] = (uint32_t)i;
+    for (size_t i = 0; ok && i < ns; i++)
+        ok = pos[small[i].index] != UINT32_MAX && (i == 0 || pos[small[i].index] > pos[small[i - 1].index]);
+    CHECK(ok, "%s: radius(x=(%g,%g,%g)) order: r2 %g's %zu photons are not in r2 %g's order", what, x.x, x.y, x.z,
+          r2, ns, r2_big);
+    free(small);
+    free(big);
+    free(pos);
+}
+
 /* Queries: random points around the set, every (or every few) photon's own
  * position, and midpoints of photon pairs, which make distance ties. */
 static void s_check_queries(const pf_kdtree_t *t, int nrandom, const char *what)
@@ -338,6 +361,11 @@ static void s_check_queries(const pf_kdtree_t *t, int nrandom, const char *what)
             for (int ki = 0; ki < nk; ki++)
                 s_check_knn(t, x, all, ks[ki], radii[r], out, what);
             s_check_radius(t, x, all, radii[r], out, what);
+        }
+        if (q % 4 == 0) {
+            s_check_radius_order(t, x, fminf(radii[4], radii[3]), fmaxf(radii[4], radii[3]), what);
+            s_check_radius_order(t, x, radii[4], INFINITY, what);
+            s_check_radius_order(t, x, 0.25f * radii[4], radii[4], what);
         }
     }
     free(all);
@@ -769,7 +797,8 @@ static void s_test_irradiance_hint(int kind, size_t n, int nq)
     }
     pf_kdtree_t *t = s_build_copy(input, n);
     const pf_photon_t *ph = pf_kdtree_photons(t);
-    pf_knn_t scratch[PF_MAX_K];
+    static pf_pm_scratch_t scratch_mem;
+    pf_pm_scratch_t *scratch = &scratch_mem;
     int bad = 0;
     const int ks[4] = { 1, 2, 8, 100 };
     for (int q = 0; q < nq; q++) {

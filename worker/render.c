@@ -112,7 +112,7 @@ typedef struct s_state {
     pf_vec3 gf[S_MAX_CLUSTERS];
     uint64_t pixel;
     uint32_t sample;
-    pf_knn_t scratch[PF_MAX_K];
+    pf_pm_scratch_t scratch;
 } s_state;
 
 /* Caustic irradiance at p (surface normal nf), reusing the pixel's last
@@ -125,7 +125,7 @@ static pf_vec3 s_caustic(s_state *st, pf_vec3 p, pf_vec3 nf)
     const pf_render_ctx_t *c = st->ctx;
     float r2 = 0.0f;
     pf_vec3 e = pf_pm_irradiance_cone(c->maps->caustic, p, nf, c->settings.caustic_k, c->maps->caustic_r2,
-                                      st->caustic_hint, st->scratch, &r2);
+                                      st->caustic_hint, &st->scratch, &r2);
     st->caustic_hint = r2 < c->maps->caustic_r2 ? 2.25f * r2 : INFINITY;
     st->caustic_valid = 1;
     st->caustic_p = p;
@@ -231,7 +231,7 @@ static pf_vec3 s_gather_ray(s_state *st, pf_ray_t ray)
             pf_vec3 l;
             if (pf_mat_glossy(m))
                 l = pf_pm_radiance(c->maps->global, m, h.p, nf, wo, c->settings.global_k, c->maps->global_r2,
-                                   st->scratch);
+                                   &st->scratch);
             else
                 l = pf_scale(pf_mul(m->kd, s_irradiance(st, h.p, nf)), PF_INV_PI);
             return pf_mul(thr, l);
@@ -344,7 +344,7 @@ static pf_vec3 s_radiance(s_state *st, pf_ray_t ray, int depth, pf_vec3 thr, int
             /* The global map's own estimate (the debugging view), not the
              * precomputed points, which a scene without indirect light lacks. */
             pf_vec3 e = pf_pm_irradiance(c->maps->global, h.p, nf, c->settings.global_k, c->maps->global_r2,
-                                         st->scratch, NULL);
+                                         &st->scratch, NULL);
             return pf_add(L, pf_scale(pf_mul(m->kd, e), PF_INV_PI));
         }
         if (c->terms & PF_TERM_DIRECT)
