@@ -364,7 +364,7 @@ static int s_number(s_ctx_t *c, const cJSON *v, const char *key, const char *wha
 /* A number stored as float: it must also fit the float range. */
 static int s_float(s_ctx_t *c, const cJSON *v, const char *key, const char *what, float *out)
 {
-    double d;
+    double d = 0.0; /* set by s_number when it succeeds; gcc -O3 cannot see that */
     int rc = s_number(c, v, key, what, &d);
     if (rc)
         return rc;
@@ -376,7 +376,7 @@ static int s_float(s_ctx_t *c, const cJSON *v, const char *key, const char *what
 
 static int s_int(s_ctx_t *c, const cJSON *v, const char *key, const char *what, int lo, int hi, int *out)
 {
-    double d;
+    double d = 0.0; /* set by s_number when it succeeds; gcc -O3 cannot see that */
     int rc = s_number(c, v, key, what, &d);
     if (rc)
         return rc;
@@ -388,7 +388,7 @@ static int s_int(s_ctx_t *c, const cJSON *v, const char *key, const char *what, 
 
 static int s_u64(s_ctx_t *c, const cJSON *v, const char *key, const char *what, uint64_t *out)
 {
-    double d;
+    double d = 0.0; /* set by s_number when it succeeds; gcc -O3 cannot see that */
     int rc = s_number(c, v, key, what, &d);
     if (rc)
         return rc;

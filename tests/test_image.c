@@ -48,7 +48,11 @@ static const char *s_path(const char *name)
     static char bufs[8][256];
     static int next;
     char *b = bufs[next++ % 8];
-    snprintf(b, sizeof bufs[0], "%s/%s", s_dir, name);
+    int len = snprintf(b, sizeof bufs[0], "%s/%s", s_dir, name);
+    if (len < 0 || (size_t)len >= sizeof bufs[0]) {
+        fprintf(stderr, "test path too long: %s/%s\n", s_dir, name);
+        exit(2);
+    }
     return b;
 }
 
