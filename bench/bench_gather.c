@@ -13,39 +13,30 @@
 #include <stdio.h>
 #include <stdlib.h>
 
-#include "common/accel.h"
+#include "bench/bench_setup.h"
 #include "common/bsdf.h"
-#include "common/light.h"
-#include "common/log.h"
 #include "common/rng.h"
-#include "coordinator/photon_trace.h"
 #include "worker/render.h"
 
 int main(int argc, char **argv)
 {
     const char *path = argc > 1 ? argv[1] : "scenes/cornell-spheres/scene.json";
     int w = argc > 2 ? atoi(argv[2]) : 128, gather = argc > 3 ? atoi(argv[3]) : 16;
-    pf_log_set_level(PF_LOG_WARN);
-    pf_error_t err;
-    pf_scene_t *scene = pf_scene_load(path, &err);
-    if (!scene) {
-        fprintf(stderr, "%s\n", err.msg);
-        return 1;
-    }
+    bench_scene_t b = bench_load(path);
+    const pf_scene_t *scene = b.scene;
+    const pf_accel_t *accel = b.accel;
     pf_settings_t s = scene->settings;
     s.width = s.height = w;
-    pf_accel_t *accel = pf_accel_create(scene, &err);
-    pf_lights_t *lights = pf_lights_build(scene);
     pf_photon_maps_t maps;
     pf_photon_stats_t st;
-    if (!accel || !lights || pf_photon_pass(scene, accel, lights, &s, &maps, &st) != PF_OK ||
-        pf_photon_maps_index(&maps) != PF_OK) {
-        fprintf(stderr, "setup failed\n");
+    bench_photon_pass(&b, &s, &maps, &st);
+    if (pf_photon_maps_index(&maps) != PF_OK) {
+        fprintf(stderr, "out of memory for the irradiance grid\n");
         return 1;
     }
     pf_accel_thread_init();
     pf_render_ctx_t ctx;
-    pf_render_ctx_init(&ctx, scene, accel, lights, &maps, &s);
+    pf_render_ctx_init(&ctx, scene, accel, b.lights, &maps, &s);
 
     size_t cap = (size_t)w * (size_t)w * (size_t)gather, n = 0;
     pf_ray_t *rays = malloc(cap * sizeof *rays);
@@ -86,8 +77,6 @@ int main(int argc, char **argv)
     printf("ratio              %8.1f %%   (checksum %g)\n", 100.0 * best_a / best_b, sink);
     free(rays);
     pf_photon_maps_free(&maps);
-    pf_lights_destroy(&lights);
-    pf_accel_destroy(&accel);
-    pf_scene_destroy(&scene);
+    bench_free(&b);
     return 0;
 }

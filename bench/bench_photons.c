@@ -16,38 +16,24 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "common/accel.h"
-#include "common/light.h"
-#include "common/log.h"
+#include "bench/bench_setup.h"
 #include "common/rng.h"
 #include "coordinator/irradiance.h"
-#include "coordinator/photon_trace.h"
 
 int main(int argc, char **argv)
 {
     const char *path = argc > 1 ? argv[1] : "scenes/cornell-box/scene.json";
     unsigned long long photons = argc > 2 ? strtoull(argv[2], NULL, 10) : 10000000ull;
     int reps = argc > 3 ? atoi(argv[3]) : 3;
-    pf_log_set_level(PF_LOG_WARN);
-    pf_error_t err;
-    pf_scene_t *scene = pf_scene_load(path, &err);
-    if (!scene) {
-        fprintf(stderr, "%s\n", err.msg);
-        return 1;
-    }
-    pf_settings_t s = scene->settings;
+    bench_scene_t b = bench_load(path);
+    pf_settings_t s = b.scene->settings;
     s.photons = photons;
     s.caustic_photons = 0;
     int threads = omp_get_num_procs();
     s.threads = threads;
-    pf_accel_t *accel = pf_accel_create(scene, &err);
-    pf_lights_t *lights = pf_lights_build(scene);
     pf_photon_maps_t maps;
     pf_photon_stats_t st;
-    if (!accel || !lights || pf_photon_pass(scene, accel, lights, &s, &maps, &st) != PF_OK) {
-        fprintf(stderr, "photon pass failed\n");
-        return 1;
-    }
+    bench_photon_pass(&b, &s, &maps, &st);
     size_t n = pf_kdtree_size(maps.global);
     float r2 = maps.global_r2;
     size_t stride = s.irradiance_stride > 0 ? (size_t)s.irradiance_stride : 1;
@@ -93,8 +79,6 @@ int main(int argc, char **argv)
            "bytes per photon\n",
            best_b, best_i, best_sum, sizeof(pf_photon_t));
     free(shuffled);
-    pf_lights_destroy(&lights);
-    pf_accel_destroy(&accel);
-    pf_scene_destroy(&scene);
+    bench_free(&b);
     return 0;
 }
