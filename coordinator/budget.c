@@ -73,24 +73,25 @@ int pf_budget_plan_photons(pf_budget_t *b, const pf_scene_t *scene, const pf_acc
     return PF_OK;
 }
 
-void pf_budget_plan_spp(pf_budget_t *b, const pf_scene_t *scene, const pf_accel_t *accel, const pf_lights_t *lights,
-                        const pf_photon_maps_t *maps, unsigned terms, int local_threads, pf_settings_t *s)
+/* Blocks of S_PROBE_BLOCK^2 pixels, as the real render meets them
+ * (neighbouring pixels share caches, a pixel's samples share its caustic
+ * estimate); single scattered samples cost half again as much per sample and
+ * made the plan leave a third of the time unused. */
+enum { S_PROBE_BLOCK = 8 };
+
+/* Renders the probe's blocks at spp samples per pixel (the settings in base
+ * otherwise) and returns the thread-seconds per camera sample, the filtered
+ * gathers of a block's border costed as the render's tiles will carry them. */
+static double s_probe(pf_budget_t *b, const pf_scene_t *scene, const pf_accel_t *accel, const pf_lights_t *lights,
+                      const pf_photon_maps_t *maps, unsigned terms, int local_threads, const pf_settings_t *base,
+                      int spp)
 {
-    if (b->fix_spp)
-        return;
-    /* Blocks of S_PROBE_BLOCK^2 pixels at S_PROBE_SPP samples, as the real
-     * render meets them (neighbouring pixels share caches, a pixel's samples
-     * share its caustic estimate); single scattered samples cost half again
-     * as much per sample and made the plan leave a third of the time unused,
-     * and 2 samples a pixel still a third at 120 s (spp 44). */
-    enum { S_PROBE_BLOCK = 8, S_PROBE_SPP = 8 };
-    pf_settings_t probe = *s;
-    probe.spp = S_PROBE_SPP;
+    pf_settings_t probe = *base;
+    probe.spp = spp;
     pf_render_ctx_t ctx;
     pf_render_ctx_init(&ctx, scene, accel, lights, maps, &probe);
     ctx.terms = terms;
-    uint64_t npx = (uint64_t)s->width * (uint64_t)s->height;
-    int bx = (s->width + S_PROBE_BLOCK - 1) / S_PROBE_BLOCK, by = (s->height + S_PROBE_BLOCK - 1) / S_PROBE_BLOCK;
+    int bx = (base->width + S_PROBE_BLOCK - 1) / S_PROBE_BLOCK, by = (base->height + S_PROBE_BLOCK - 1) / S_PROBE_BLOCK;
     /* A gx x gy lattice of blocks, evenly spaced in both directions, so the
      * probe sees each part of the view in proportion (spacing them in scan
      * order put every block in one or two columns of the image: the left
@@ -114,8 +115,8 @@ void pf_budget_plan_spp(pf_budget_t *b, const pf_scene_t *scene, const pf_accel_
         for (int i = 0; i < n; i++) {
             int x0 = (int)(((2 * (int64_t)(i % gx) + 1) * bx) / (2 * gx)) * S_PROBE_BLOCK;
             int y0 = (int)(((2 * (int64_t)(i / gx) + 1) * by) / (2 * gy)) * S_PROBE_BLOCK;
-            int w = x0 + S_PROBE_BLOCK <= s->width ? S_PROBE_BLOCK : s->width - x0;
-            int h = y0 + S_PROBE_BLOCK <= s->height ? S_PROBE_BLOCK : s->height - y0;
+            int w = x0 + S_PROBE_BLOCK <= base->width ? S_PROBE_BLOCK : base->width - x0;
+            int h = y0 + S_PROBE_BLOCK <= base->height ? S_PROBE_BLOCK : base->height - y0;
             pf_render_tile_cost(&ctx, x0, y0, w, h, px, &mine);
         }
 #pragma omp critical
@@ -129,34 +130,64 @@ void pf_budget_plan_spp(pf_budget_t *b, const pf_scene_t *scene, const pf_accel_
     /* A probe block's border of filtered gathers is far larger for its size
      * than a tile's: the recording is costed per sample recorded and scaled
      * to the border the render's tiles carry. */
-    double r = (double)s->gather_filter, t = (double)(b->tile > 0 ? b->tile : 32);
+    double r = (double)base->gather_filter, t = (double)(b->tile > 0 ? b->tile : 32);
     double border = cost.record_samples ? (t + 2.0 * r) * (t + 2.0 * r) / (t * t) : 0.0;
-    b->sample_s = cost.samples ? cost.render_s / (double)cost.samples : 0.0;
+    double sample_s = cost.samples ? cost.render_s / (double)cost.samples : 0.0;
     if (cost.record_samples)
-        b->sample_s += border * cost.record_s / (double)cost.record_samples;
-    pf_debug("time limit probe: %d blocks, %.3f s wall on %d threads; recording %.3f s for %" PRIu64
-             " samples, rendering %.3f s for %" PRIu64 " samples",
-             n, pf_now() - wall0, local_threads, cost.record_s, cost.record_samples, cost.render_s, cost.samples);
+        sample_s += border * cost.record_s / (double)cost.record_samples;
+    pf_debug("time limit probe at spp %d: %d blocks, %.3f s wall on %d threads; recording %.3f s for %" PRIu64
+             " samples, rendering %.3f s for %" PRIu64 " samples: %.2f us per sample",
+             spp, n, pf_now() - wall0, local_threads, cost.record_s, cost.record_samples, cost.render_s, cost.samples,
+             sample_s * 1e6);
+    return sample_s;
+}
+
+void pf_budget_plan_spp(pf_budget_t *b, const pf_scene_t *scene, const pf_accel_t *accel, const pf_lights_t *lights,
+                        const pf_photon_maps_t *maps, unsigned terms, int local_threads, pf_settings_t *s)
+{
+    if (b->fix_spp)
+        return;
+    /* A pixel's cost is p + spp c: some work is done once per pixel whatever
+     * its samples (the filter's footprint, caustic estimates its samples
+     * share), so the cost per sample falls as spp grows. Probed at 8 samples
+     * alone, the plan for spp 23 overestimated the render by 30 % (21.2 s
+     * planned, 16.2 s taken, cornell-spheres at 30 s). Two probes, at
+     * S_PROBE_LO and S_PROBE_HI, give p and c. */
+    enum { S_PROBE_LO = 2, S_PROBE_HI = 8 };
+    double e_lo = s_probe(b, scene, accel, lights, maps, terms, local_threads, s, S_PROBE_LO);
+    double e_hi = s_probe(b, scene, accel, lights, maps, terms, local_threads, s, S_PROBE_HI);
+    double c = (S_PROBE_HI * e_hi - S_PROBE_LO * e_lo) / (S_PROBE_HI - S_PROBE_LO);
+    double p = S_PROBE_LO * (e_lo - c);
+    if (!(c > 0.0) || !(p >= 0.0)) {
+        /* Noise outweighed the difference: the cost per sample at the higher
+         * spp, which overestimates any larger one. */
+        c = e_hi;
+        p = 0.0;
+    }
+    b->sample_s = c;
+    b->pixel_s = p;
+    uint64_t npx = (uint64_t)s->width * (uint64_t)s->height;
     double left = pf_budget_left(b) - S_RESERVE_S - S_RESERVE_SHARE * b->limit_s;
-    double per_spp = (double)npx * b->sample_s / (double)b->render_threads;
-    double spp = per_spp > 0.0 ? floor(S_SAFETY * left / per_spp) : 1.0;
+    double per_spp = (double)npx * c / (double)b->render_threads;
+    double fixed = (double)npx * p / (double)b->render_threads;
+    double spp = per_spp > 0.0 ? floor((S_SAFETY * left - fixed) / per_spp) : 1.0;
     if (!(spp >= 1.0)) {
         pf_warn("time limit: even one sample per pixel needs about %.1f s more than the %.1f s left; "
                 "rendering with 1",
-                per_spp - left, left > 0.0 ? left : 0.0);
+                fixed + per_spp - left, left > 0.0 ? left : 0.0);
         spp = 1.0;
     }
     if (spp > (double)(1 << 16))
         spp = (double)(1 << 16);
     s->spp = (int)spp;
-    b->planned_render_s = per_spp * spp;
+    b->planned_render_s = fixed + per_spp * spp;
 }
 
 void pf_budget_log(const pf_budget_t *b, const pf_settings_t *s)
 {
     pf_info("time limit %.3g s: %" PRIu64 " global + %" PRIu64 " caustic photons, %d spp x %d gather rays "
-            "(%.2f us per photon, %.1f us per camera sample per thread; render planned at %.1f s on %d threads, "
-            "%.1f s left)",
+            "(%.2f us per photon; per thread %.1f us per pixel + %.1f us per camera sample; render planned at "
+            "%.1f s on %d threads, %.1f s left)",
             b->limit_s, s->photons, s->caustic_photons, s->spp, s->gather, b->photon_s_per_photon * 1e6,
-            b->sample_s * 1e6, b->planned_render_s, b->render_threads, pf_budget_left(b));
+            b->pixel_s * 1e6, b->sample_s * 1e6, b->planned_render_s, b->render_threads, pf_budget_left(b));
 }

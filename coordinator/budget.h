@@ -11,13 +11,15 @@
  *      four times the photons lower relMSE by 9 %, four times the camera
  *      samples by 34 %), hence the small share.
  *   2. Samples. With the maps built, a probe renders PF_BUDGET_PROBE_PIXELS
- *      pixels in 8 x 8 blocks on a lattice over the image, 8 samples each,
- *      which gives the thread-seconds per camera sample for this scene and
- *      view (the filtered gathers of a block's border costed as the render's
- *      tiles will carry them); spp is the
- *      number of samples per pixel that fills the time left (less a reserve
- *      for writing the image and a safety margin) on all the threads that
- *      will render: this process's, or every worker's together.
+ *      pixels in 8 x 8 blocks on a lattice over the image, twice: at 2 and
+ *      at 8 samples per pixel, which gives a pixel's thread-seconds as
+ *      p + spp c for this scene and view (p: the work done once per pixel,
+ *      such as the gather filter's footprint and the caustic estimates its
+ *      samples share; the filtered gathers of a block's border costed as the
+ *      render's tiles will carry them); spp is the number of samples per
+ *      pixel that fills the time left (less a reserve for writing the image
+ *      and a safety margin) on all the threads that will render: this
+ *      process's, or every worker's together.
  * The image is then rendered in one pass with that spp, so it is the same
  * image a render with those settings gives (deterministic given the choices;
  * the choices depend on the machine's speed). */
@@ -51,7 +53,8 @@ typedef struct pf_budget {
     int tile;           /* the render's tile size (its filtered-gather border scales with it) */
     int fix_photons, fix_caustic, fix_spp; /* given on the command line: kept as they are */
     /* Filled in as the plan is made, for the summary. */
-    double photon_s_per_photon, sample_s; /* calibration: seconds per photon, thread-seconds per camera sample */
+    double photon_s_per_photon; /* calibration: seconds per photon */
+    double pixel_s, sample_s;   /* thread-seconds a pixel costs: pixel_s + spp * sample_s */
     double planned_render_s;
 } pf_budget_t;
 
