@@ -4,7 +4,8 @@
  *
  * How it decides (docs/benchmarks.md shows the curves behind the rules):
  *   1. Photons. A calibration pass of PF_BUDGET_CAL_PHOTONS photons per map
- *      (trace, kd-trees, irradiance) gives the seconds per photon; the photon
+ *      (trace, kd-trees, irradiance; the faster of two runs) gives the
+ *      seconds per photon; the photon
  *      pass then gets PF_BUDGET_PHOTON_SHARE of the time left, within
  *      [PF_BUDGET_MIN_PHOTONS, PF_BUDGET_MAX_PHOTONS] per map. The maps'
  *      error matters less than the pixels' (the renders at 512x512 say so:
