@@ -66,6 +66,62 @@ static uint64_t s_rank(uint64_t *keys, size_t n, size_t r)
     return keys[lo];
 }
 
+/* Sorts keys[0, n) ascending: quicksort (middle pivot, the smaller side
+ * recursed), insertion sort below 16. */
+static void s_sort_keys(uint64_t *a, size_t n)
+{
+    while (n > 16) {
+        uint64_t piv = a[n / 2];
+        size_t i = 0, j = n - 1;
+        for (;;) {
+            while (a[i] < piv)
+                i++;
+            while (a[j] > piv)
+                j--;
+            if (i >= j)
+                break;
+            uint64_t t = a[i];
+            a[i] = a[j];
+            a[j] = t;
+            i++;
+            j--;
+        }
+        /* a[0, j] <= piv <= a[j + 1, n) (keys are unique) */
+        size_t left = j + 1;
+        if (left < n - left) {
+            s_sort_keys(a, left);
+            a += left;
+            n -= left;
+        } else {
+            s_sort_keys(a + left, n - left);
+            n = left;
+        }
+    }
+    for (size_t i = 1; i < n; i++) {
+        uint64_t v = a[i];
+        size_t j = i;
+        for (; j > 0 && a[j - 1] > v; j--)
+            a[j] = a[j - 1];
+        a[j] = v;
+    }
+}
+
+/* Puts found[0, n) in tree-index order (indices are unique). */
+static void s_sort_by_index(pf_knn_t *found, size_t n, uint64_t *keys)
+{
+    for (size_t i = 0; i < n; i++) {
+        uint32_t bits;
+        memcpy(&bits, &found[i].d2, sizeof bits);
+        keys[i] = (uint64_t)found[i].index << 32 | bits;
+    }
+    s_sort_keys(keys, n);
+    for (size_t i = 0; i < n; i++) {
+        uint32_t bits = (uint32_t)keys[i];
+        found[i].index = (uint32_t)(keys[i] >> 32);
+        memcpy(&found[i].d2, &bits, sizeof bits);
+    }
+}
+
 /* Keeps, in place and in order, the entries of a[0, n) with keys below
  * kth's. */
 static size_t s_keep_before(pf_knn_t *a, size_t n, uint64_t kth)
@@ -88,8 +144,9 @@ static size_t s_keep_before(pf_knn_t *a, size_t n, uint64_t kth)
  *
  * They come in the radius search's order (a pre-order walk of the tree,
  * nearer child first), which does not depend on the radius searched: a larger
- * one only adds subtrees. So the sums over them, and the estimates, are the
- * same bits whatever the hint (or a thread's previous query) was.
+ * one only adds subtrees; or, when fewer than k lie within max_r2 (which no
+ * hint can change), in tree order. So the sums over them, and the estimates,
+ * are the same bits whatever the hint (or a thread's previous query) was.
  *
  * With a hint (a guess at the k-th photon's squared distance, from a nearby
  * estimate) the photons within it are collected and the k-th picked by
@@ -117,10 +174,10 @@ static size_t s_gather(const pf_kdtree_t *map, pf_vec3 x, int k, float max_r2, f
     } else {
         size_t n = pf_kdtree_knn_heap(map, x, kk, max_r2, found);
         if (n < kk) {
-            /* All of them: the same set within max_r2, in walk order. */
-            c = pf_kdtree_radius(map, x, max_r2, found, cap);
-            PF_DCHECK(c == n);
-            return c;
+            /* All of them (none within a hint can have found k): in tree
+             * order, which is canonical too and cheaper than a walk. */
+            s_sort_by_index(found, n, scratch->keys);
+            return n;
         }
         kth = s_knn_key(&found[0]); /* the heap's root: the k-th */
         float kth_d2 = found[0].d2;
