@@ -922,6 +922,29 @@ fail:
     return PF_ENOMEM;
 }
 
+/* Scans the cell of key for agreeing points better than *best (by d2, then
+ * index); 1 if one was found. */
+static inline int s_grid_scan(const s_grid *g, uint64_t key, const float q[3], pf_vec3 n, float min_cos,
+                              pf_knn_t *best)
+{
+    uint64_t i = s_grid_slot(key, g->mask);
+    while (g->cells[i].key != key && g->cells[i].key != S_GRID_EMPTY)
+        i = (i + 1) & g->mask;
+    if (g->cells[i].key == S_GRID_EMPTY)
+        return 0;
+    int got = 0;
+    const s_gpoint *p = &g->pts[g->cells[i].start], *end = p + g->cells[i].count;
+    for (; p < end; p++) {
+        float d2 = s_dist2(q, p->pos);
+        if ((d2 < best->d2 || (d2 == best->d2 && p->index < best->index)) &&
+            pf_dot(pf_v3(p->nrm[0], p->nrm[1], p->nrm[2]), n) >= min_cos) {
+            *best = (pf_knn_t){ p->index, d2 };
+            got = 1;
+        }
+    }
+    return got;
+}
+
 /* The grid's part of pf_kdtree_nearest_normal: 1 with the exact answer in
  * *out (or none, *found = 0), 0 when the tree must decide; then *max_r2 is
  * lowered to the best squared distance seen, which bounds the tree's search. */
@@ -939,22 +962,30 @@ static int s_nearest_grid(const s_grid *g, pf_vec3 x, pf_vec3 n, float min_cos, 
     const float q[3] = { x.x, x.y, x.z };
     pf_knn_t best = { UINT32_MAX, *max_r2 };
     int got = 0;
+    /* The query's own cell first (one of the block's 8): when the best
+     * agreeing point there is closer than the cell's nearest face, no point
+     * outside the cell can match it (margin as for exact_d2), and the other
+     * seven cells are not read. */
+    int64_t own[3];
+    double face = 0.5;
+    for (int a = 0; a < 3; a++) {
+        double f = (c[a] - g->origin[a]) * g->inv_h; /* >= 0.5, checked above */
+        own[a] = (int64_t)f;
+        double fr = f - (double)own[a];
+        face = fmin(face, fmin(fr, 1.0 - fr));
+    }
+    uint64_t own_key = s_grid_key(own[0], own[1], own[2]);
+    got |= s_grid_scan(g, own_key, q, n, min_cos, &best);
+    double face_d = face / g->inv_h * (1.0 - 1e-3);
+    if (got && best.d2 < (float)(face_d * face_d)) {
+        *found = 1;
+        *out = best;
+        return 1;
+    }
     for (int d = 0; d < 8; d++) {
         uint64_t key = s_grid_key(b[0] + (d & 1), b[1] + ((d >> 1) & 1), b[2] + (d >> 2));
-        uint64_t i = s_grid_slot(key, g->mask);
-        while (g->cells[i].key != key && g->cells[i].key != S_GRID_EMPTY)
-            i = (i + 1) & g->mask;
-        if (g->cells[i].key == S_GRID_EMPTY)
-            continue;
-        const s_gpoint *p = &g->pts[g->cells[i].start], *end = p + g->cells[i].count;
-        for (; p < end; p++) {
-            float d2 = s_dist2(q, p->pos);
-            if ((d2 < best.d2 || (d2 == best.d2 && p->index < best.index)) &&
-                pf_dot(pf_v3(p->nrm[0], p->nrm[1], p->nrm[2]), n) >= min_cos) {
-                best = (pf_knn_t){ p->index, d2 };
-                got = 1;
-            }
-        }
+        if (key != own_key)
+            got |= s_grid_scan(g, key, q, n, min_cos, &best);
     }
     if (got ? best.d2 < g->exact_d2 : *max_r2 < g->exact_d2) {
         *found = got;
