@@ -50,7 +50,9 @@ static inline uint32_t pf_oct_encode(pf_vec3 v)
     return ux | (uy << 16);
 }
 
-static inline pf_vec3 pf_oct_decode(uint32_t code)
+/* The octahedral code's point on the unit octahedron (|x| + |y| + |z| = 1):
+ * the direction, not yet of unit length. */
+static inline pf_vec3 pf_oct_decode_raw(uint32_t code)
 {
     float x = (float)(code & 0xffffu) / 65535.0f * 2.0f - 1.0f;
     float y = (float)(code >> 16) / 65535.0f * 2.0f - 1.0f;
@@ -61,13 +63,25 @@ static inline pf_vec3 pf_oct_decode(uint32_t code)
         x = tx;
         y = ty;
     }
-    return pf_norm(pf_v3(x, y, z));
+    return pf_v3(x, y, z);
 }
+
+static inline pf_vec3 pf_oct_decode(uint32_t code) { return pf_norm(pf_oct_decode_raw(code)); }
 
 /* The photon's surface normal (unit). */
 static inline pf_vec3 pf_photon_normal(const pf_photon_t *p)
 {
     return pf_oct_decode(p->normal & ~PF_PHOTON_AXIS_BITS);
+}
+
+/* Whether the photon's normal has a cosine of at least min_cos (> 0) with
+ * unit n, without normalizing it: dot >= min_cos |v| as dot^2 >= min_cos^2
+ * |v|^2 (the estimates test every photon they sum). */
+static inline int pf_photon_normal_agrees(const pf_photon_t *p, pf_vec3 n, float min_cos)
+{
+    pf_vec3 v = pf_oct_decode_raw(p->normal & ~PF_PHOTON_AXIS_BITS);
+    float d = pf_dot(v, n);
+    return d > 0.0f && d * d >= min_cos * min_cos * pf_dot(v, v);
 }
 
 /* The kd-tree split axis kept with the photon: 0, 1 or 2 in a tree (3 is

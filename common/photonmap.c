@@ -225,7 +225,7 @@ pf_vec3 pf_pm_irradiance_hint(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int 
     double s[3] = { 0, 0, 0 };
     for (size_t i = 0; i < cnt; i++) {
         const pf_photon_t *p = &ph[scratch->found[i].index];
-        if (pf_dot(pf_photon_normal(p), n) < PF_NORMAL_AGREE)
+        if (!pf_photon_normal_agrees(p, n, PF_NORMAL_AGREE))
             continue;
         s[0] += p->power[0];
         s[1] += p->power[1];
@@ -249,7 +249,7 @@ pf_vec3 pf_pm_irradiance_cone(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int 
     double s[3] = { 0, 0, 0 };
     for (size_t i = 0; i < cnt; i++) {
         const pf_photon_t *p = &ph[scratch->found[i].index];
-        if (pf_dot(pf_photon_normal(p), n) < PF_NORMAL_AGREE)
+        if (!pf_photon_normal_agrees(p, n, PF_NORMAL_AGREE))
             continue;
         double w = 1.0 - sqrt((double)scratch->found[i].d2) / r;
         if (w <= 0.0)
@@ -274,7 +274,7 @@ pf_vec3 pf_pm_radiance(const pf_kdtree_t *map, const struct pf_material *m, pf_v
     double s[3] = { 0, 0, 0 };
     for (size_t i = 0; i < cnt; i++) {
         const pf_photon_t *p = &ph[scratch->found[i].index];
-        if (pf_dot(pf_photon_normal(p), n) < PF_NORMAL_AGREE)
+        if (!pf_photon_normal_agrees(p, n, PF_NORMAL_AGREE))
             continue;
         pf_vec3 wi = pf_neg(pf_oct_decode(p->dir));
         pf_vec3 f = pf_brdf_eval(m, n, wi, wo);
