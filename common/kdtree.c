@@ -275,41 +275,40 @@ static int s_widest_axis(const s_item_t *a, size_t lo, size_t hi)
 }
 
 /* Lays out the subtree of a[lo, hi): the median by key goes to the middle,
- * then both halves recursively. Large left halves become tasks. */
-static void s_build(s_item_t *a, uint8_t *axes, size_t lo, size_t hi)
+ * then both halves recursively. Large left halves become tasks. A placed
+ * median's keys are never read again, so its first key holds its split axis
+ * from then on (no array of axes beside the items). */
+static void s_build(s_item_t *a, size_t lo, size_t hi)
 {
     while (hi > lo) {
         size_t m = lo + (hi - lo) / 2;
         int axis = s_widest_axis(a, lo, hi);
         if (hi - lo > 1)
             s_select(a, (ptrdiff_t)lo, (ptrdiff_t)hi - 1, (ptrdiff_t)m, axis);
-        axes[m] = (uint8_t)axis;
+        a[m].k[0] = (uint32_t)axis;
         if (m - lo >= S_TASK_MIN) {
             size_t llo = lo, lhi = m;
-#pragma omp task default(none) firstprivate(a, axes, llo, lhi)
-            s_build(a, axes, llo, lhi);
+#pragma omp task default(none) firstprivate(a, llo, lhi)
+            s_build(a, llo, lhi);
         } else {
-            s_build(a, axes, lo, m);
+            s_build(a, lo, m);
         }
         lo = m + 1;
     }
 }
 
-/* Moves photon perm[i] to slot i for all i and gives it split axis
- * axes[i]. A gather into a new array issues independent loads (on all threads
+/* Moves photon perm[i] to slot i for all i. A gather into a new array issues independent loads (on all threads
  * when parallel), an order of magnitude faster than following the
  * permutation's cycles in place, whose loads depend on each other; the
  * in-place way is the fallback when memory for the copy is short. Returns the
  * array now holding the photons (ph itself, or the copy with ph freed). */
-static pf_photon_t *s_permute(pf_photon_t *ph, uint32_t *perm, const uint8_t *axes, size_t n, int parallel)
+static pf_photon_t *s_permute(pf_photon_t *ph, uint32_t *perm, size_t n, int parallel)
 {
     pf_photon_t *out = malloc((n ? n : 1) * sizeof *out);
     if (out) {
-#pragma omp parallel for if (parallel) schedule(static) default(none) shared(out, ph, perm, axes, n)
-        for (size_t i = 0; i < n; i++) {
+#pragma omp parallel for if (parallel) schedule(static) default(none) shared(out, ph, perm, n)
+        for (size_t i = 0; i < n; i++)
             out[i] = ph[perm[i]];
-            pf_photon_set_axis(&out[i], axes[i]);
-        }
         free(ph);
         return out;
     }
@@ -331,8 +330,6 @@ static pf_photon_t *s_permute(pf_photon_t *ph, uint32_t *perm, const uint8_t *ax
             j = from;
         }
     }
-    for (size_t i = 0; i < n; i++)
-        pf_photon_set_axis(&ph[i], axes[i]);
     return ph;
 }
 
@@ -392,14 +389,11 @@ pf_kdtree_t *pf_kdtree_build(pf_photon_t **photons_p, size_t n)
     pf_photon_t *ph = *photons_p;
     *photons_p = NULL;
     PF_CHECK(n == 0 || ph);
-    uint8_t *axes = NULL;
     s_item_t *items = NULL;
     if (n >= S_MAX_N)
         goto fail;
-    /* The axes are written into the photons once they are in tree order. */
-    axes = malloc(n ? n : 1);
     items = malloc((n ? n : 1) * sizeof *items);
-    if (!axes || !items)
+    if (!items)
         goto fail;
     const int parallel = n >= S_PARALLEL_MIN;
 #pragma omp parallel for if (parallel) schedule(static) default(none) shared(items, ph, n)
@@ -409,44 +403,45 @@ pf_kdtree_t *pf_kdtree_build(pf_photon_t **photons_p, size_t n)
         items[i].idx = (uint32_t)i;
     }
     if (parallel) {
-#pragma omp parallel default(none) shared(items, axes, n)
+#pragma omp parallel default(none) shared(items, n)
 #pragma omp single
-        s_build(items, axes, 0, n);
+        s_build(items, 0, n);
         /* The implicit barrier at the end of the region waits for all tasks. */
     } else {
-        s_build(items, axes, 0, n);
+        s_build(items, 0, n);
     }
-    /* Keep only the permutation (4 of the 16 bytes per photon), so that
-     * less is held during the permutation: in an array of its own, or when
-     * that memory is short packed at the front of the items' memory, one
-     * thread (slot i is written after items[i] was read). */
+    /* Each photon takes its node's split axis where it is, and then only the
+     * permutation (4 of the 16 bytes per photon) is kept, so that less is
+     * held during the permutation: in an array of its own, or when that
+     * memory is short packed at the front of the items' memory, one thread
+     * (slot i is written after items[i] was read). */
     uint32_t *perm = malloc((n ? n : 1) * sizeof *perm);
     if (perm) {
-#pragma omp parallel for if (parallel) schedule(static) default(none) shared(items, perm, n)
-        for (size_t i = 0; i < n; i++)
+#pragma omp parallel for if (parallel) schedule(static) default(none) shared(items, perm, ph, n)
+        for (size_t i = 0; i < n; i++) {
             perm[i] = items[i].idx;
+            pf_photon_set_axis(&ph[items[i].idx], items[i].k[0]);
+        }
         free(items);
     } else {
         perm = (uint32_t *)items;
         for (size_t i = 0; i < n; i++) {
             uint32_t idx = items[i].idx;
+            pf_photon_set_axis(&ph[idx], items[i].k[0]);
             perm[i] = idx;
         }
         uint32_t *smaller = realloc(perm, (n ? n : 1) * sizeof *perm);
         perm = smaller ? smaller : perm;
     }
     items = NULL;
-    ph = s_permute(ph, perm, axes, n, parallel);
+    ph = s_permute(ph, perm, n, parallel);
     free(perm);
-    free(axes);
-    axes = NULL;
     pf_kdtree_t *self = s_make(ph, n);
     if (!self)
         goto fail;
     return self;
 fail:
     free(items);
-    free(axes);
     free(ph);
     return NULL;
 }
