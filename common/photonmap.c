@@ -1,7 +1,7 @@
 /* photonmap.c: density estimates over photon maps; see photonmap.h. Pure
  * functions of the maps and the query, safe from any thread. Sums run in
- * double in the order the kd-tree returns photons, so results are
- * reproducible bit for bit. */
+ * double in an order fixed by the map and the query point alone (s_gather),
+ * so results are reproducible bit for bit. */
 #include "common/photonmap.h"
 
 #include <stddef.h>
@@ -33,6 +33,15 @@ static inline uint64_t s_knn_key(const pf_knn_t *e)
     uint32_t b;
     memcpy(&b, &e->d2, sizeof b);
     return (uint64_t)b << 32 | e->index;
+}
+
+/* The entry of a key (the inverse of s_knn_key). */
+static inline pf_knn_t s_knn_of_key(uint64_t key)
+{
+    uint32_t b = (uint32_t)(key >> 32);
+    pf_knn_t e = { (uint32_t)key, 0.0f };
+    memcpy(&e.d2, &b, sizeof b);
+    return e;
 }
 
 /* The key of rank r (0-based) of keys[0, n), r < n; reorders keys.
@@ -140,7 +149,7 @@ static size_t s_keep_before(pf_knn_t *a, size_t n, uint64_t kth)
  * lambda, while counting all k overestimates by k / (k - 1), 1 % at k = 100,
  * which the furnace shows), or all within max_r2 (*r2 = max_r2) when fewer
  * than k lie there, or for k = 1 the nearest over max_r2; returns how many,
- * in scratch (PF_PM_SCRATCH entries).
+ * in scratch->found.
  *
  * They come in the radius search's order (a pre-order walk of the tree,
  * nearer child first), which does not depend on the radius searched: a larger
@@ -171,6 +180,12 @@ static size_t s_gather(const pf_kdtree_t *map, pf_vec3 x, int k, float max_r2, f
         for (size_t i = 0; i < c; i++)
             scratch->keys[i] = s_knn_key(&found[i]);
         kth = s_rank(scratch->keys, c, kk - 1);
+        if (kk == 1) {
+            /* k = 1: the nearest photon, over the max_r2 disc (a radius
+             * marked by the only photon would leave none to sum). */
+            found[0] = s_knn_of_key(kth);
+            return 1;
+        }
     } else {
         size_t n = pf_kdtree_knn_heap(map, x, kk, max_r2, found);
         if (n < kk) {
@@ -179,6 +194,8 @@ static size_t s_gather(const pf_kdtree_t *map, pf_vec3 x, int k, float max_r2, f
             s_sort_by_index(found, n, scratch->keys);
             return n;
         }
+        if (kk == 1)
+            return 1; /* the nearest, in found[0]; over max_r2 as above */
         kth = s_knn_key(&found[0]); /* the heap's root: the k-th */
         float kth_d2 = found[0].d2;
         c = pf_kdtree_radius(map, x, kth_d2, found, cap);
@@ -191,16 +208,7 @@ static size_t s_gather(const pf_kdtree_t *map, pf_vec3 x, int k, float max_r2, f
             return kk - 1;
         }
     }
-    if (kk == 1) {
-        /* k = 1: the nearest photon, over the max_r2 disc (a radius marked
-         * by the only photon would leave none to sum). */
-        found[0].index = (uint32_t)kth;
-        uint32_t bits = (uint32_t)(kth >> 32);
-        memcpy(&found[0].d2, &bits, sizeof bits);
-        return 1;
-    }
-    uint32_t bits = (uint32_t)(kth >> 32);
-    memcpy(r2, &bits, sizeof bits);
+    *r2 = s_knn_of_key(kth).d2;
     size_t m = s_keep_before(found, c, kth);
     PF_DCHECK(m == kk - 1);
     return m;
