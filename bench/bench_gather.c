@@ -9,7 +9,8 @@
  * following, the irradiance lookup with its support and visibility checks).
  * Prints both rates and their ratio (the issue's goal: (b) >= 50 % of (a)),
  * and the renderer's steps timed one at a time: the intersection, the
- * irradiance lookup, the leak-test visibility ray.
+ * irradiance lookup, the leak-test visibility ray (where the point is not
+ * flat; photonmap.h), with the share of lookups that trace it.
  *
  * usage: bench_gather [scene.json] [W] [gather] */
 #include <math.h>
@@ -65,6 +66,9 @@ int main(int argc, char **argv)
      * adds to these the mirror and glass paths it follows and the shading. */
     double sink = 0.0;
     double best_steps[3] = { 1e30, 1e30, 1e30 };
+    size_t lookups = 0, traced = 0, flat = 0;
+    for (size_t i = 0; i < pf_kdtree_size(maps.irradiance); i++)
+        flat += pf_irradiance_flat(&pf_kdtree_photons(maps.irradiance)[i]);
     const pf_kdtree_t *irr = maps.irradiance;
     for (int rep = 0; rep < 3; rep++) {
         for (int step = 0; step < 3; step++) {
@@ -83,13 +87,15 @@ int main(int argc, char **argv)
                 sink += nn.d2;
                 if (step == 1)
                     continue;
-                float d = sqrtf(nn.d2);
-                pf_vec3 a = pf_madd(h.p, nf, d), q = pf_madd(pf_photon_pos(&pf_kdtree_photons(irr)[nn.index]), nf, d);
-                float len = pf_len(pf_sub(q, a));
-                if (len > 0.0f) {
-                    pf_ray_t ray = { a, pf_scale(pf_sub(q, a), 1.0f / len) };
-                    sink += pf_accel_occluded(accel, &ray, len);
+                const pf_photon_t *q = &pf_kdtree_photons(irr)[nn.index];
+                float d = sqrtf(nn.d2), len;
+                pf_ray_t ray;
+                if (rep == 0 && step == 2) {
+                    lookups += nn.d2 <= pf_irradiance_radius(q) * pf_irradiance_radius(q);
+                    traced += pf_irradiance_leak_test(q, d, pf_accel_eps(accel));
                 }
+                if (pf_irradiance_leak_test(q, d, pf_accel_eps(accel)) && pf_irradiance_leak_ray(h.p, nf, q, d, &ray, &len))
+                    sink += pf_accel_occluded(accel, &ray, len);
             }
             double dt = pf_now() - ta;
             best_steps[step] = dt < best_steps[step] ? dt : best_steps[step];
@@ -119,6 +125,10 @@ int main(int argc, char **argv)
            "the renderer's whole gather ray %.0f ns\n",
            best_steps[0] / (double)n * 1e9, (best_steps[1] - best_steps[0]) / (double)n * 1e9,
            (best_steps[2] - best_steps[1]) / (double)n * 1e9, best_b / (double)n * 1e9);
+    printf("irradiance points flat (no leak-test ray): %.1f %%; lookups within a support %zu, of which %.1f %% "
+           "traced the leak-test ray\n",
+           100.0 * (double)flat / (double)pf_kdtree_size(maps.irradiance), lookups,
+           lookups ? 100.0 * (double)traced / (double)lookups : 0.0);
     free(rays);
     pf_photon_maps_free(&maps);
     bench_free(&b);

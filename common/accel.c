@@ -5,6 +5,8 @@
 
 #include <embree3/rtcore.h>
 #include <float.h>
+#include <math.h>
+#include <stdbool.h>
 #include <pmmintrin.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -16,6 +18,8 @@
 struct pf_accel {
     RTCDevice device;
     RTCScene rtc;
+    RTCScene sphere_bounds; /* the spheres as boxes, for pf_accel_only_plane: Embree's point
+                             * query skips its own sphere geometry; NULL without spheres */
     const pf_scene_t *scene;
     uint32_t sphere_geom;
     float eps; /* pf_accel_eps */
@@ -31,6 +35,19 @@ void pf_accel_thread_init(void)
 {
     _MM_SET_FLUSH_ZERO_MODE(_MM_FLUSH_ZERO_ON);
     _MM_SET_DENORMALS_ZERO_MODE(_MM_DENORMALS_ZERO_ON);
+}
+
+static bool s_plane_query_prim(struct RTCPointQueryFunctionArguments *args);
+
+static void s_sphere_box(const struct RTCBoundsFunctionArguments *args)
+{
+    const pf_sphere_t *sp = &((const pf_scene_t *)args->geometryUserPtr)->spheres[args->primID];
+    args->bounds_o->lower_x = sp->center.x - sp->radius;
+    args->bounds_o->lower_y = sp->center.y - sp->radius;
+    args->bounds_o->lower_z = sp->center.z - sp->radius;
+    args->bounds_o->upper_x = sp->center.x + sp->radius;
+    args->bounds_o->upper_y = sp->center.y + sp->radius;
+    args->bounds_o->upper_z = sp->center.z + sp->radius;
 }
 
 pf_accel_t *pf_accel_create(const pf_scene_t *scene, pf_error_t *err)
@@ -102,6 +119,16 @@ pf_accel_t *pf_accel_create(const pf_scene_t *scene, pf_error_t *err)
         rtcCommitGeometry(g);
         rtcAttachGeometryByID(self->rtc, g, self->sphere_geom);
         rtcReleaseGeometry(g);
+        self->sphere_bounds = rtcNewScene(self->device);
+        g = rtcNewGeometry(self->device, RTC_GEOMETRY_TYPE_USER);
+        rtcSetGeometryUserPrimitiveCount(g, (unsigned)scene->nspheres);
+        rtcSetGeometryUserData(g, (void *)scene);
+        rtcSetGeometryBoundsFunction(g, s_sphere_box, NULL);
+        rtcSetGeometryPointQueryFunction(g, s_plane_query_prim);
+        rtcCommitGeometry(g);
+        rtcAttachGeometryByID(self->sphere_bounds, g, self->sphere_geom);
+        rtcReleaseGeometry(g);
+        rtcCommitScene(self->sphere_bounds);
     }
     rtcCommitScene(self->rtc);
     enum RTCError e = rtcGetDeviceError(self->device);
@@ -120,6 +147,8 @@ void pf_accel_destroy(pf_accel_t **self_p)
     pf_accel_t *self = *self_p;
     if (self->rtc)
         rtcReleaseScene(self->rtc);
+    if (self->sphere_bounds)
+        rtcReleaseScene(self->sphere_bounds);
     if (self->device)
         rtcReleaseDevice(self->device);
     free(self);
@@ -247,3 +276,120 @@ pf_vec3 pf_offset_origin(pf_vec3 p, pf_vec3 perr, pf_vec3 ng, pf_vec3 w)
 }
 
 float pf_accel_eps(const pf_accel_t *self) { return self->eps; }
+
+/* pf_accel_only_plane's query state. */
+typedef struct s_plane_query {
+    const pf_accel_t *accel;
+    double c[3], n[3]; /* the query point and the plane's unit normal */
+    double reach2;
+    int only_plane;
+} s_plane_query;
+
+static inline double s_dot3(const double a[3], const double b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+
+/* Squared distance from p to triangle abc (Ericson, Real-Time Collision
+ * Detection, 5.1.5: the closest point by Voronoi region). */
+static double s_tri_dist2(const double p[3], const double a[3], const double b[3], const double c[3])
+{
+    double ab[3], ac[3], ap[3], bp[3], cp[3], q[3];
+    for (int i = 0; i < 3; i++) {
+        ab[i] = b[i] - a[i], ac[i] = c[i] - a[i];
+        ap[i] = p[i] - a[i], bp[i] = p[i] - b[i], cp[i] = p[i] - c[i];
+    }
+    double d1 = s_dot3(ab, ap), d2 = s_dot3(ac, ap), d3 = s_dot3(ab, bp), d4 = s_dot3(ac, bp);
+    double d5 = s_dot3(ab, cp), d6 = s_dot3(ac, cp);
+    double va = d3 * d6 - d5 * d4, vb = d5 * d2 - d1 * d6, vc = d1 * d4 - d3 * d2;
+    double u, v; /* q = a + u ab + v ac */
+    if (d1 <= 0.0 && d2 <= 0.0)
+        u = 0.0, v = 0.0;
+    else if (d3 >= 0.0 && d4 <= d3)
+        u = 1.0, v = 0.0;
+    else if (vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0)
+        u = d1 / (d1 - d3), v = 0.0;
+    else if (d6 >= 0.0 && d5 <= d6)
+        u = 0.0, v = 1.0;
+    else if (vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0)
+        u = 0.0, v = d2 / (d2 - d6);
+    else if (va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0) {
+        double w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        u = 1.0 - w, v = w;
+    } else {
+        double den = 1.0 / (va + vb + vc);
+        u = vb * den, v = vc * den;
+    }
+    double d2sum = 0.0;
+    for (int i = 0; i < 3; i++) {
+        q[i] = a[i] + u * ab[i] + v * ac[i] - p[i];
+        d2sum += q[i] * q[i];
+    }
+    return d2sum;
+}
+
+/* Called by Embree for every primitive whose bounds meet the query sphere:
+ * the triangles of rtc, the spheres of sphere_bounds. */
+static bool s_plane_query_prim(struct RTCPointQueryFunctionArguments *args)
+{
+    s_plane_query *pq = args->userPtr;
+    const pf_scene_t *scene = pq->accel->scene;
+    int ok = 0;
+    if (args->geomID < scene->nmeshes) {
+        const pf_mesh_t *mesh = &scene->meshes[args->geomID];
+        const uint32_t *idx = &mesh->idx[3 * (size_t)args->primID];
+        double v[3][3];
+        for (int k = 0; k < 3; k++) {
+            pf_vec3 p = mesh->pos[idx[k]];
+            v[k][0] = p.x, v[k][1] = p.y, v[k][2] = p.z;
+        }
+        if (s_tri_dist2(pq->c, v[0], v[1], v[2]) > pq->reach2)
+            return false; /* its bounds meet the sphere, the triangle does not */
+        double e1[3], e2[3], nt[3], cv[3];
+        for (int i = 0; i < 3; i++)
+            e1[i] = v[1][i] - v[0][i], e2[i] = v[2][i] - v[0][i], cv[i] = pq->c[i] - v[0][i];
+        nt[0] = e1[1] * e2[2] - e1[2] * e2[1];
+        nt[1] = e1[2] * e2[0] - e1[0] * e2[2];
+        nt[2] = e1[0] * e2[1] - e1[1] * e2[0];
+        double len = sqrt(s_dot3(nt, nt));
+        if (!(len > 0.0))
+            return false; /* no area: no ray hits it */
+        for (int i = 0; i < 3; i++)
+            nt[i] /= len;
+        /* |nt x n| = sin of the angle between the planes */
+        double cx = nt[1] * pq->n[2] - nt[2] * pq->n[1], cy = nt[2] * pq->n[0] - nt[0] * pq->n[2],
+               cz = nt[0] * pq->n[1] - nt[1] * pq->n[0];
+        ok = cx * cx + cy * cy + cz * cz <= (double)PF_ACCEL_PLANE_TILT * PF_ACCEL_PLANE_TILT &&
+             fabs(s_dot3(cv, nt)) <= (double)pq->accel->eps;
+    }
+    else {
+        const pf_sphere_t *sp = &scene->spheres[args->primID];
+        double dc[3] = { pq->c[0] - sp->center.x, pq->c[1] - sp->center.y, pq->c[2] - sp->center.z };
+        ok = fabs(sqrt(s_dot3(dc, dc)) - (double)sp->radius) > sqrt(pq->reach2);
+    }
+    if (ok)
+        return false;
+    /* Another surface: the answer is known, and a zero radius ends the
+     * traversal. */
+    pq->only_plane = 0;
+    args->query->radius = 0.0f;
+    return true;
+}
+
+int pf_accel_only_plane(const pf_accel_t *self, pf_vec3 c, pf_vec3 n, float reach)
+{
+    if (!(reach >= 0.0f) || !isfinite(reach) || !isfinite(c.x) || !isfinite(c.y) || !isfinite(c.z))
+        return 0;
+    double nl = sqrt((double)n.x * n.x + (double)n.y * n.y + (double)n.z * n.z);
+    if (!(nl > 0.0))
+        return 0;
+    s_plane_query pq = { self, { c.x, c.y, c.z }, { n.x / nl, n.y / nl, n.z / nl }, (double)reach * reach, 1 };
+    struct RTCPointQuery q = { c.x, c.y, c.z, 0.0f, reach };
+    struct RTCPointQueryContext ctx;
+    rtcInitPointQueryContext(&ctx);
+    rtcPointQuery(self->rtc, &q, &ctx, s_plane_query_prim, &pq);
+    if (pq.only_plane && self->sphere_bounds) {
+        q.radius = reach;
+        rtcInitPointQueryContext(&ctx);
+        rtcPointQuery(self->sphere_bounds, &q, &ctx, s_plane_query_prim, &pq);
+    }
+    return pq.only_plane;
+}
+

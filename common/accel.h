@@ -46,6 +46,16 @@ pf_vec3 pf_offset_origin(pf_vec3 p, pf_vec3 perr, pf_vec3 ng, pf_vec3 w);
  * scene: 2^-21 of the scene's extent. Hits already include it in perr; points
  * made elsewhere (emission) take the max with it before pf_offset_origin. */
 float pf_accel_eps(const pf_accel_t *self);
+/* Whether every surface within reach of c lies in the plane through c with
+ * unit normal n: 1 when each triangle that comes that close has its plane
+ * within pf_accel_eps of c and tilted from n (either side) by at most
+ * PF_ACCEL_PLANE_TILT radians; 0 when any other triangle or any sphere does.
+ * Then no surface but that plane meets the ball, and a ray inside the ball
+ * running above the plane (by more than the tilt and eps allow) hits
+ * nothing. Safe from any thread. */
+#define PF_ACCEL_PLANE_TILT 5e-4f
+int pf_accel_only_plane(const pf_accel_t *self, pf_vec3 c, pf_vec3 n, float reach);
+
 /* A ray leaving the hit point in direction w. */
 static inline pf_ray_t pf_spawn_ray(const pf_hit_t *h, pf_vec3 w)
 {

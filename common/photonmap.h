@@ -8,6 +8,7 @@
 #include <stdint.h>
 #include <string.h>
 
+#include "common/accel.h"
 #include "common/kdtree.h"
 
 typedef struct pf_photon_maps {
@@ -59,12 +60,53 @@ pf_vec3 pf_pm_irradiance_hint(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int 
                               pf_pm_scratch_t *scratch, float *r2_out);
 
 /* The radius of the disc an irradiance point's estimate averaged over (its
- * support), kept in the point's otherwise unused direction field. */
+ * support), kept in the point's otherwise unused direction field; the sign
+ * bit there is the point's flat flag (pf_irradiance_flat). */
+#define PF_IRRADIANCE_FLAT_BIT 0x80000000u
 static inline float pf_irradiance_radius(const pf_photon_t *p)
 {
+    uint32_t u = p->dir & ~PF_IRRADIANCE_FLAT_BIT;
     float r;
-    memcpy(&r, &p->dir, sizeof r);
+    memcpy(&r, &u, sizeof r);
     return r;
+}
+
+/* Set when no surface but the point's own plane comes within
+ * PF_IRRADIANCE_FLAT_REACH times its support radius (pf_accel_only_plane,
+ * at precompute time). A lookup p within the support of such a point q lies
+ * on that plane, and the leak test's ray, from p and q both lifted by their
+ * distance d, runs inside that ball above the plane: it can hit nothing once
+ * d clears the plane's tolerance (pf_irradiance_leak_test). */
+#define PF_IRRADIANCE_FLAT_REACH 1.5f
+static inline int pf_irradiance_flat(const pf_photon_t *p) { return (p->dir & PF_IRRADIANCE_FLAT_BIT) != 0; }
+
+/* Whether a lookup at distance d from irradiance point q needs the leak
+ * test's visibility ray (eps: pf_accel_eps). Not when d is within eps (no
+ * wall fits between), nor when q is flat and d lifts the ray above what the
+ * plane's tolerance allows: eps for the plane through q, eps and the tilt
+ * over the radius for p's triangle, the tilt over the reach for any other
+ * triangle of the plane (3 eps + 2.5 tilt r), with a margin. */
+static inline int pf_irradiance_leak_test(const pf_photon_t *q, float d, float eps)
+{
+    if (!(d > eps))
+        return 0;
+    return !(pf_irradiance_flat(q) && d > 4.0f * eps + 3.0f * PF_ACCEL_PLANE_TILT * pf_irradiance_radius(q));
+}
+
+/* The leak test's ray for a lookup at p (face normal nf, towards the viewer)
+ * answered by q at distance d: from p to q, both lifted by d along nf; the
+ * lookup reads q's irradiance only when this segment (of length *len) hits
+ * nothing. 0 when p and q coincide once lifted (nothing to trace). */
+static inline int pf_irradiance_leak_ray(pf_vec3 p, pf_vec3 nf, const pf_photon_t *q, float d, pf_ray_t *ray,
+                                         float *len)
+{
+    pf_vec3 a = pf_madd(p, nf, d), b = pf_madd(pf_photon_pos(q), nf, d);
+    pf_vec3 ab = pf_sub(b, a);
+    *len = pf_len(ab);
+    if (!(*len > 0.0f))
+        return 0;
+    *ray = (pf_ray_t){ a, pf_scale(ab, 1.0f / *len) };
+    return 1;
 }
 
 /* The same with a cone filter (Jensen 2001, 7.2.2, k = 1): weight

@@ -12,8 +12,8 @@
 #include "common/accel.h"
 #include "common/photonmap.h"
 
-int pf_irradiance_precompute(const pf_kdtree_t *global, int stride, int k, float max_r2, int threads,
-                             pf_kdtree_t **out)
+int pf_irradiance_precompute(const pf_kdtree_t *global, int stride, int k, float max_r2, const pf_accel_t *accel,
+                             int threads, pf_kdtree_t **out)
 {
     if (stride < 1)
         stride = 1;
@@ -49,6 +49,8 @@ int pf_irradiance_precompute(const pf_kdtree_t *global, int stride, int k, float
             float r = sqrtf(r2);
             uint32_t support;
             memcpy(&support, &r, sizeof support);
+            if (accel && pf_accel_only_plane(accel, pf_photon_pos(p), nrm, PF_IRRADIANCE_FLAT_REACH * r))
+                support |= PF_IRRADIANCE_FLAT_BIT;
             pts[i] = (pf_photon_t){ { p->pos[0], p->pos[1], p->pos[2] }, { e.x, e.y, e.z }, support, p->normal };
         }
         free(scratch);

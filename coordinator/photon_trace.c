@@ -280,7 +280,7 @@ int pf_photon_pass(const pf_scene_t *scene, const pf_accel_t *accel, const pf_li
         size_t stride = settings->irradiance_stride > 0 ? (size_t)settings->irradiance_stride : 1;
         if (gn / stride > PF_IRRADIANCE_MAX_POINTS)
             stride = (gn + PF_IRRADIANCE_MAX_POINTS - 1) / PF_IRRADIANCE_MAX_POINTS;
-        rc = pf_irradiance_precompute(maps->global, (int)stride, settings->global_k, maps->global_r2, threads,
+        rc = pf_irradiance_precompute(maps->global, (int)stride, settings->global_k, maps->global_r2, accel, threads,
                                       &maps->irradiance);
     }
     stats->irradiance_s = pf_now() - t2;

@@ -467,6 +467,48 @@ static void s_test_occluded(void)
     pf_scene_destroy(&sc);
 }
 
+/* pf_accel_only_plane: a floor made of two triangles, a second floor
+ * triangle split off in the same plane, a wall standing on it at x = 1, a
+ * parallel sheet 1e-3 under the floor's far half (a thin wall's other face)
+ * and a sphere above. */
+static void s_test_only_plane(void)
+{
+    pf_scene_t *sc = s_scene();
+    const pf_vec3 floor[4] = { { -2, 0, -2 }, { 2, 0, -2 }, { 2, 0, 2 }, { -2, 0, 2 } };
+    const uint32_t quad[6] = { 0, 2, 1, 0, 3, 2 };
+    s_add_tris(sc, floor, 4, quad, 2, NULL);
+    const pf_vec3 wall[4] = { { 1, 0, -2 }, { 1, 2, -2 }, { 1, 2, 2 }, { 1, 0, 2 } };
+    s_add_tris(sc, wall, 4, quad, 2, NULL);
+    const pf_vec3 sheet[4] = { { -2, -1e-3f, 1 }, { 0.5f, -1e-3f, 1 }, { 0.5f, -1e-3f, 2 }, { -2, -1e-3f, 2 } };
+    s_add_tris(sc, sheet, 4, quad, 2, NULL);
+    pf_sphere_t sp = { .center = pf_v3(-1.0f, 0.5f, -1.0f), .radius = 0.25f, .mat = 0 };
+    pf_scene_add_sphere(sc, &sp);
+    pf_accel_t *acc = s_accel(sc);
+    const pf_vec3 up = pf_v3(0, 1, 0);
+    float eps = pf_accel_eps(acc);
+    /* Open floor, across the diagonal where its two triangles meet. */
+    CHECK(pf_accel_only_plane(acc, pf_v3(0.0f, 0.0f, 0.0f), up, 0.4f), "open floor: not only its plane");
+    CHECK(pf_accel_only_plane(acc, pf_v3(0.0f, 0.0f, 0.0f), pf_neg(up), 0.4f), "open floor, normal -y: not only its plane");
+    /* A normal tilted by 1e-3 rad, or a point off the plane by 4 eps. */
+    CHECK(!pf_accel_only_plane(acc, pf_v3(0.0f, 0.0f, 0.0f), pf_norm(pf_v3(1e-3f, 1.0f, 0.0f)), 0.4f),
+          "a plane tilted by 1e-3 rad passed as the floor's");
+    CHECK(!pf_accel_only_plane(acc, pf_v3(0.0f, 4.0f * eps, 0.0f), up, 0.4f), "a point 4 eps above the floor passed");
+    /* The wall 0.5 away: outside a reach of 0.45, inside one of 0.55. */
+    CHECK(pf_accel_only_plane(acc, pf_v3(0.5f, 0.0f, -0.5f), up, 0.45f), "the wall counted from 0.5 at reach 0.45");
+    CHECK(!pf_accel_only_plane(acc, pf_v3(0.5f, 0.0f, -0.5f), up, 0.55f), "the wall missed from 0.5 at reach 0.55");
+    /* The parallel sheet 1e-3 below: a thin wall's other face. */
+    CHECK(!pf_accel_only_plane(acc, pf_v3(-1.0f, 0.0f, 1.5f), up, 0.1f), "a parallel face 1e-3 below passed");
+    CHECK(pf_accel_only_plane(acc, pf_v3(-1.0f, 0.0f, 0.5f), up, 0.4f), "the sheet counted from 0.5 at reach 0.4");
+    /* The sphere's bottom 0.25 above the floor. */
+    CHECK(!pf_accel_only_plane(acc, pf_v3(-1.0f, 0.0f, -1.0f), up, 0.3f), "the sphere above missed");
+    /* Degenerate queries. */
+    CHECK(!pf_accel_only_plane(acc, pf_v3(0.0f, 0.0f, 0.0f), pf_v3s(0.0f), 0.4f), "a zero normal passed");
+    CHECK(!pf_accel_only_plane(acc, pf_v3(NAN, 0.0f, 0.0f), up, 0.4f), "a NaN point passed");
+    CHECK(!pf_accel_only_plane(acc, pf_v3(0.0f, 0.0f, 0.0f), up, NAN), "a NaN reach passed");
+    pf_accel_destroy(&acc);
+    pf_scene_destroy(&sc);
+}
+
 /* ---- camera ---- */
 
 static void s_test_camera(void)
@@ -555,6 +597,7 @@ int main(void)
     const pf_vec3 ceil[3] = { { -0.24f, 1.98f, -0.22f }, { 0.23f, 1.98f, -0.22f }, { 0.23f, 1.98f, 0.16f } };
     s_test_triangle_spawn("ceiling-light triangle in the plane y = 1.98", ceil, 26);
     s_test_occluded();
+    s_test_only_plane();
     s_test_camera();
     printf("%d passed, %d failed\n", s_passed, s_failed);
     return s_failed ? 1 : 0;

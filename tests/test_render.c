@@ -25,6 +25,8 @@
 #include "common/light.h"
 #include "common/log.h"
 #include "common/metrics.h"
+#include "common/rng.h"
+#include "common/bsdf.h"
 #include "common/scene.h"
 #include "coordinator/job.h"
 #include "coordinator/photon_trace.h"
@@ -129,6 +131,69 @@ static int s_same_tree(const pf_kdtree_t *a, const pf_kdtree_t *b)
 {
     size_t n = pf_kdtree_size(a);
     return n == pf_kdtree_size(b) && memcmp(pf_kdtree_photons(a), pf_kdtree_photons(b), n * sizeof(pf_photon_t)) == 0;
+}
+
+/* Flat irradiance points (photonmap.h) let a lookup skip the leak test's
+ * ray. Over the lookups of gather rays from camera hits on a scene, every
+ * skipped ray, traced anyway, must hit nothing (else the skip changes the
+ * image), and most must be skipped on the Cornell scenes' open walls. */
+static void s_test_flat_points(const char *path)
+{
+    pf_scene_t *scene = s_load(path);
+    if (!scene)
+        return;
+    pf_settings_t s = scene->settings;
+    s.width = s.height = 64;
+    s.photons = 200000;
+    s.threads = 2;
+    pf_error_t err;
+    pf_accel_t *accel = pf_accel_create(scene, &err);
+    pf_lights_t *lights = pf_lights_build(scene);
+    pf_photon_maps_t maps;
+    pf_photon_stats_t st;
+    PF_CHECK(accel && lights && pf_photon_pass(scene, accel, lights, &s, &maps, &st) == PF_OK);
+    pf_camera_t cam = pf_camera_make(&scene->camera, s.width, s.height);
+    pf_rng_t rng = pf_rng_make(11, PF_STREAM_TEST, 0, 0);
+    const pf_kdtree_t *irr = maps.irradiance;
+    float eps = pf_accel_eps(accel);
+    long lookups = 0, skipped = 0, skipped_hit = 0, traced = 0, traced_hit = 0;
+    for (int i = 0; i < 40000; i++) {
+        pf_ray_t ray = pf_camera_ray(&cam, (float)s.width * pf_rng_float(&rng), (float)s.height * pf_rng_float(&rng));
+        pf_hit_t h;
+        /* a camera hit, then a gather ray from it (uniform over the hemisphere) */
+        if (!pf_accel_intersect(accel, &ray, INFINITY, &h))
+            continue;
+        pf_vec3 nf = pf_face_forward(h.ng, pf_neg(ray.d));
+        pf_vec3 wi = pf_to_world(pf_sample_cosine(pf_rng_float(&rng), pf_rng_float(&rng)), nf);
+        if (!pf_accel_intersect(accel, &(pf_ray_t){ pf_spawn_ray(&h, wi).o, wi }, INFINITY, &h) ||
+            scene->mats[h.mat].type != PF_MAT_DIFFUSE)
+            continue;
+        nf = pf_face_forward(h.ng, pf_neg(wi));
+        pf_knn_t nn;
+        if (!pf_kdtree_nearest_normal(irr, h.p, nf, PF_NORMAL_AGREE, maps.irradiance_r2, &nn))
+            continue;
+        const pf_photon_t *q = &pf_kdtree_photons(irr)[nn.index];
+        float d = sqrtf(nn.d2), len;
+        pf_ray_t leak;
+        if (!(nn.d2 <= pf_irradiance_radius(q) * pf_irradiance_radius(q)) || !(d > eps) ||
+            !pf_irradiance_leak_ray(h.p, nf, q, d, &leak, &len))
+            continue;
+        lookups++;
+        int hit = pf_accel_occluded(accel, &leak, len);
+        if (pf_irradiance_leak_test(q, d, eps))
+            traced++, traced_hit += hit;
+        else
+            skipped++, skipped_hit += hit;
+    }
+    printf("%s: %ld lookups, %ld skip the leak ray (%ld of them would hit), %ld trace it (%ld hit)\n", path, lookups,
+           skipped, skipped_hit, traced, traced_hit);
+    CHECK(lookups > 10000, "%s: only %ld lookups within a support", path, lookups);
+    CHECK(skipped_hit == 0, "%s: %ld lookups skipped a leak-test ray that hits something", path, skipped_hit);
+    CHECK(skipped > lookups / 2, "%s: only %ld of %ld lookups skip the leak-test ray", path, skipped, lookups);
+    pf_photon_maps_free(&maps);
+    pf_lights_destroy(&lights);
+    pf_accel_destroy(&accel);
+    pf_scene_destroy(&scene);
 }
 
 static void s_test_determinism(void)
@@ -419,6 +484,8 @@ int main(int argc, char **argv)
         s_test_furnace();
     if (all || !strcmp(what, "determinism")) {
         s_test_determinism();
+        s_test_flat_points("scenes/cornell-box/scene.json");
+        s_test_flat_points("scenes/cornell-spheres/scene.json");
         s_test_skips();
         s_test_filter();
     }

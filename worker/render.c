@@ -184,7 +184,8 @@ static pf_vec3 s_direct(s_state *st, const pf_hit_t *h, const pf_material_t *m, 
  * between p and q both lifted off the surface by their distance d, which
  * clears a convex surface (a chord's sagitta d^2 / 8R is below d) but not a
  * wall standing between them: without it the final gather reads light
- * through walls (the stress suite's thin wall and closed crate). */
+ * through walls (the stress suite's thin wall and closed crate). Points with
+ * nothing but their own plane nearby need no ray (pf_irradiance_leak_test). */
 static pf_vec3 s_irradiance(s_state *st, pf_vec3 p, pf_vec3 nf)
 {
     const pf_render_ctx_t *c = st->ctx;
@@ -197,16 +198,11 @@ static pf_vec3 s_irradiance(s_state *st, pf_vec3 p, pf_vec3 nf)
     if (!(near.d2 <= r * r))
         return pf_v3s(0.0f);
     float d = sqrtf(near.d2);
-    if (d > pf_accel_eps(c->accel)) {
-        pf_vec3 a = pf_madd(p, nf, d), b = pf_madd(pf_photon_pos(q), nf, d);
-        pf_vec3 ab = pf_sub(b, a);
-        float len = pf_len(ab);
-        if (len > 0.0f) {
-            pf_ray_t ray = { a, pf_scale(ab, 1.0f / len) };
-            if (pf_accel_occluded(c->accel, &ray, len))
-                return pf_v3s(0.0f);
-        }
-    }
+    pf_ray_t ray;
+    float len;
+    if (pf_irradiance_leak_test(q, d, pf_accel_eps(c->accel)) && pf_irradiance_leak_ray(p, nf, q, d, &ray, &len) &&
+        pf_accel_occluded(c->accel, &ray, len))
+        return pf_v3s(0.0f);
     return pf_photon_power(q);
 }
 
