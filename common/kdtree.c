@@ -724,19 +724,20 @@ end:
 /* The nearest-point grid (pf_kdtree_index_nearest). A uniform grid of cubic
  * cells of side h, hashed (open addressing, linear probing) from the cell's
  * packed coordinates to its run of points; the points are copied in cell
- * order, each with its decoded normal and its tree index, 32 bytes. A query
- * scans the 2 x 2 x 2 cells around it, which hold every point closer than
- * h / 2; only when the best agreeing point found there is not that close does
- * it fall back to the tree, so the answer is always the tree's answer. */
+ * order, each with its normal's code and its tree index, 20 bytes (the
+ * normal is decoded only for a point closer than the best so far). A query
+ * scans the 2 x 2 x 2 cells around it, nearest first, which hold every point
+ * closer than h / 2; only when the best agreeing point found there is not
+ * that close does it fall back to the tree, so the answer is always the
+ * tree's answer. */
 #define S_GRID_BITS 21
 #define S_GRID_MAX ((int64_t)1 << S_GRID_BITS)
 #define S_GRID_EMPTY UINT64_MAX
 
 typedef struct s_gpoint {
     float pos[3];
-    float nrm[3];
+    uint32_t normal; /* the photon's normal code, axis bits cleared: decoded only for a closer point */
     uint32_t index;
-    uint32_t pad;
 } s_gpoint;
 
 typedef struct s_gcell {
@@ -748,6 +749,7 @@ struct s_grid {
     double origin[3];
     double inv_h;
     float exact_d2; /* a best point closer than this is the exact answer */
+    double cell_d2; /* h^2, less a margin as for exact_d2: squared distances in cells to world units */
     s_gcell *cells;
     uint64_t mask;  /* table size - 1 */
     size_t ncells;
@@ -862,6 +864,7 @@ int pf_kdtree_index_nearest(pf_kdtree_t *self)
     g->inv_h = 1.0 / h;
     double half = 0.5 * h * (1.0 - 1e-3);
     g->exact_d2 = (float)(half * half);
+    g->cell_d2 = h * h * (1.0 - 1e-3) * (1.0 - 1e-3);
     g->mask = 1023;
     g->cells = malloc((g->mask + 1) * sizeof *g->cells);
     g->pts = malloc(self->n * sizeof *g->pts);
@@ -904,11 +907,9 @@ int pf_kdtree_index_nearest(pf_kdtree_t *self)
         uint64_t key = s_grid_key(s_grid_coord(g, 0, ph->pos[0]), s_grid_coord(g, 1, ph->pos[1]),
                                   s_grid_coord(g, 2, ph->pos[2]));
         s_gcell *c = s_grid_find(g->cells, g->mask, key);
-        pf_vec3 nrm = pf_photon_normal(ph);
         g->pts[c->start + c->count++] = (s_gpoint){ { ph->pos[0], ph->pos[1], ph->pos[2] },
-                                                    { nrm.x, nrm.y, nrm.z },
-                                                    (uint32_t)i,
-                                                    0 };
+                                                    ph->normal & ~PF_PHOTON_AXIS_BITS,
+                                                    (uint32_t)i };
     }
     self->grid = g;
     return PF_OK;
@@ -927,12 +928,28 @@ static inline int s_grid_scan(const s_grid *g, uint64_t key, const float q[3], p
         i = (i + 1) & g->mask;
     if (g->cells[i].key == S_GRID_EMPTY)
         return 0;
-    int got = 0;
     const s_gpoint *p = &g->pts[g->cells[i].start], *end = p + g->cells[i].count;
+    /* The cell's nearest point (the first of equals: a run is in tree
+     * order) is the answer when its normal agrees, and none when it is no
+     * better than *best; only otherwise is the cell searched point by point. */
+    const s_gpoint *arg = NULL;
+    float m = INFINITY;
+    for (const s_gpoint *r = p; r < end; r++) {
+        float d2 = s_dist2(q, r->pos);
+        if (d2 < m)
+            m = d2, arg = r;
+    }
+    if (!arg || !(m < best->d2 || (m == best->d2 && arg->index < best->index)))
+        return 0;
+    if (pf_dot(pf_oct_decode(arg->normal), n) >= min_cos) {
+        *best = (pf_knn_t){ arg->index, m };
+        return 1;
+    }
+    int got = 0;
     for (; p < end; p++) {
         float d2 = s_dist2(q, p->pos);
         if ((d2 < best->d2 || (d2 == best->d2 && p->index < best->index)) &&
-            pf_dot(pf_v3(p->nrm[0], p->nrm[1], p->nrm[2]), n) >= min_cos) {
+            pf_dot(pf_oct_decode(p->normal), n) >= min_cos) {
             *best = (pf_knn_t){ p->index, d2 };
             got = 1;
         }
@@ -957,30 +974,38 @@ static int s_nearest_grid(const s_grid *g, pf_vec3 x, pf_vec3 n, float min_cos, 
     const float q[3] = { x.x, x.y, x.z };
     pf_knn_t best = { UINT32_MAX, *max_r2 };
     int got = 0;
-    /* The query's own cell first (one of the block's 8): when the best
-     * agreeing point there is closer than the cell's nearest face, no point
-     * outside the cell can match it (margin as for exact_d2), and the other
-     * seven cells are not read. */
-    int64_t own[3];
-    double face = 0.5;
+    /* The block's cells nearest first (the query's own cell, at 0, then
+     * across the nearest face, ...): once the best agreeing point found is
+     * closer than the next cell's nearest face, no point there or in the
+     * cells after it can match it (margin as for exact_d2) and they are not
+     * read. */
+    /* Per axis, the query's side of the block (its own cell) and its
+     * squared distance to the block's middle face, in cells; a cell's
+     * distance sums those of the axes it lies across. */
+    int own = 0;
+    double da2[3];
     for (int a = 0; a < 3; a++) {
-        double f = (c[a] - g->origin[a]) * g->inv_h; /* >= 0.5, checked above */
-        own[a] = (int64_t)f;
-        double fr = f - (double)own[a];
-        face = fmin(face, fmin(fr, 1.0 - fr));
+        double fr = (c[a] - g->origin[a]) * g->inv_h - (double)b[a]; /* in [0.5, 1.5) */
+        own |= (fr >= 1.0) << a;
+        da2[a] = (fr - 1.0) * (fr - 1.0);
     }
-    uint64_t own_key = s_grid_key(own[0], own[1], own[2]);
-    got |= s_grid_scan(g, own_key, q, n, min_cos, &best);
-    double face_d = face / g->inv_h * (1.0 - 1e-3);
-    if (got && best.d2 < (float)(face_d * face_d)) {
-        *found = 1;
-        *out = best;
-        return 1;
-    }
+    float cd2[8];
+    int order[8];
     for (int d = 0; d < 8; d++) {
+        int across = d ^ own;
+        double e2 = ((across & 1) ? da2[0] : 0.0) + ((across & 2) ? da2[1] : 0.0) + ((across & 4) ? da2[2] : 0.0);
+        cd2[d] = (float)(e2 * g->cell_d2);
+        int j = d;
+        for (; j > 0 && cd2[order[j - 1]] > cd2[d]; j--)
+            order[j] = order[j - 1];
+        order[j] = d;
+    }
+    for (int j = 0; j < 8; j++) {
+        int d = order[j];
+        if (got && best.d2 < cd2[d])
+            break;
         uint64_t key = s_grid_key(b[0] + (d & 1), b[1] + ((d >> 1) & 1), b[2] + (d >> 2));
-        if (key != own_key)
-            got |= s_grid_scan(g, key, q, n, min_cos, &best);
+        got |= s_grid_scan(g, key, q, n, min_cos, &best);
     }
     if (got ? best.d2 < g->exact_d2 : *max_r2 < g->exact_d2) {
         *found = got;

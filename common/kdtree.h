@@ -70,7 +70,7 @@ int pf_kdtree_nearest_normal(const pf_kdtree_t *self, pf_vec3 x, pf_vec3 n, floa
 
 /* Builds a grid beside the tree that answers pf_kdtree_nearest_normal
  * several times faster for the same result (the tree still decides the rare
- * queries the grid cannot settle). Costs 32 bytes per photon plus the cell
+ * queries the grid cannot settle). Costs 20 bytes per photon plus the cell
  * table; call once, before the tree is shared between threads. 0, or
  * PF_ENOMEM with the tree unchanged. */
 int pf_kdtree_index_nearest(pf_kdtree_t *self);
