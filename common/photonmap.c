@@ -174,8 +174,15 @@ static size_t s_gather(const pf_kdtree_t *map, pf_vec3 x, int k, float max_r2, f
     pf_knn_t *found = scratch->found;
     uint64_t kth;
     size_t c = 0;
-    if (hint_r2 < max_r2)
+    /* A hint of max_r2 itself says the last estimate found fewer than k:
+     * one radius search then finds them all, cheaper than a heap search. */
+    int whole = hint_r2 == max_r2 && isfinite(max_r2);
+    if (hint_r2 < max_r2 || whole)
         c = pf_kdtree_radius(map, x, hint_r2, found, cap);
+    if (whole && c < kk) {
+        s_sort_by_index(found, c, scratch->keys); /* as the heap path below returns them */
+        return c;
+    }
     if (c >= kk && c <= cap) {
         for (size_t i = 0; i < c; i++)
             scratch->keys[i] = s_knn_key(&found[i]);
@@ -217,7 +224,7 @@ static size_t s_gather(const pf_kdtree_t *map, pf_vec3 x, int k, float max_r2, f
 pf_vec3 pf_pm_irradiance(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int k, float max_r2, pf_pm_scratch_t *scratch,
                          float *r2_out)
 {
-    return pf_pm_irradiance_hint(map, x, n, k, max_r2, max_r2, scratch, r2_out);
+    return pf_pm_irradiance_hint(map, x, n, k, max_r2, INFINITY, scratch, r2_out);
 }
 
 pf_vec3 pf_pm_irradiance_hint(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int k, float max_r2, float hint_r2,
@@ -275,7 +282,7 @@ pf_vec3 pf_pm_radiance(const pf_kdtree_t *map, const struct pf_material *m, pf_v
                        float max_r2, pf_pm_scratch_t *scratch)
 {
     float r2 = 0.0f;
-    size_t cnt = s_gather(map, x, k, max_r2, max_r2, scratch, &r2);
+    size_t cnt = s_gather(map, x, k, max_r2, INFINITY, scratch, &r2);
     if (cnt == 0 || !(r2 > 0.0f))
         return pf_v3s(0.0f);
     const pf_photon_t *ph = pf_kdtree_photons(map);

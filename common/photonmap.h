@@ -55,7 +55,10 @@ pf_vec3 pf_pm_irradiance(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int k, fl
 /* The same estimate, searched first within hint_r2 (a guess at the k-th
  * photon's squared distance, from a nearby estimate): the same result as
  * pf_pm_irradiance, bit for bit, faster when the guess holds k photons (and
- * not many times more), a second search when it does not. */
+ * not many times more), a second search when it does not. A hint of max_r2
+ * itself (finite) guesses that fewer than k photons lie within it, as when
+ * the nearby estimate found fewer: one radius search then finds them all.
+ * A hint above max_r2 (INFINITY): none. */
 pf_vec3 pf_pm_irradiance_hint(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int k, float max_r2, float hint_r2,
                               pf_pm_scratch_t *scratch, float *r2_out);
 
@@ -112,7 +115,7 @@ static inline int pf_irradiance_leak_ray(pf_vec3 p, pf_vec3 nf, const pf_photon_
 /* The same with a cone filter (Jensen 2001, 7.2.2, k = 1): weight
  * 1 - d / r, normalized by 1 - 2 / 3 over the disc, which sharpens caustics.
  * The squared radius the estimate used goes to *r2_out unless NULL; hint_r2
- * as in pf_pm_irradiance_hint (max_r2 or more: none). */
+ * as in pf_pm_irradiance_hint. */
 pf_vec3 pf_pm_irradiance_cone(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int k, float max_r2, float hint_r2,
                               pf_pm_scratch_t *scratch, float *r2_out);
 

@@ -32,7 +32,7 @@ int pf_irradiance_precompute(const pf_kdtree_t *global, int stride, int k, float
         pf_pm_scratch_t *scratch = malloc(sizeof *scratch);
         /* Points in tree order are near each other: the last estimate's
          * radius, widened by 1.5, bounds the next search (same results). */
-        float hint = max_r2;
+        float hint = INFINITY;
         if (!scratch) {
 #pragma omp atomic write
             failed = 1;
@@ -45,7 +45,7 @@ int pf_irradiance_precompute(const pf_kdtree_t *global, int stride, int k, float
             pf_vec3 nrm = pf_photon_normal(p);
             float r2 = 0.0f;
             pf_vec3 e = pf_pm_irradiance_hint(global, pf_photon_pos(p), nrm, k, max_r2, hint, scratch, &r2);
-            hint = r2 < max_r2 ? 1.44f * r2 : max_r2;
+            hint = r2 < max_r2 ? fminf(1.44f * r2, max_r2) : max_r2;
             float r = sqrtf(r2);
             uint32_t support;
             memcpy(&support, &r, sizeof support);

@@ -785,7 +785,8 @@ static void s_test_nearest_normal(int kind, size_t n, int nq, int indexed)
 /* pf_pm_irradiance_hint gives exactly pf_pm_irradiance's estimate and radius
  * (and pf_pm_irradiance_cone with a hint exactly its own without) whatever
  * the hint: too small (a second search), the k-th photon's own
- * distance (the inclusive edge), larger, none. */
+ * distance (the inclusive edge), larger, max_r2 itself (fewer than k
+ * expected), none. */
 static void s_test_irradiance_hint(int kind, size_t n, int nq)
 {
     pf_photon_t *input = s_make_set(kind, n);
@@ -808,8 +809,8 @@ static void s_test_irradiance_hint(int kind, size_t n, int nq)
             for (int mi = 0; mi < 2; mi++) {
                 float max_r2 = mi ? 0.05f : INFINITY, r2 = 0.0f;
                 pf_vec3 e = pf_pm_irradiance(t, x, pf_v3(0, 0, 1), ks[ki], max_r2, scratch, &r2);
-                float hints[7] = { 0.0f, 1e-12f, 0.5f * r2, r2, nextafterf(r2, INFINITY), 4.0f * r2, INFINITY };
-                for (int h = 0; h < 7; h++) {
+                float hints[8] = { 0.0f, 1e-12f, 0.5f * r2, r2, nextafterf(r2, INFINITY), 4.0f * r2, INFINITY, max_r2 };
+                for (int h = 0; h < 8; h++) {
                     float r2h = -1.0f;
                     pf_vec3 eh = pf_pm_irradiance_hint(t, x, pf_v3(0, 0, 1), ks[ki], max_r2, hints[h], scratch, &r2h);
                     bad += memcmp(&e, &eh, sizeof e) != 0 || memcmp(&r2, &r2h, sizeof r2) != 0;
@@ -822,7 +823,7 @@ static void s_test_irradiance_hint(int kind, size_t n, int nq)
         }
     }
     CHECK(bad == 0, "irradiance with a hint: %d of %d estimates differ from the search without one (set %d, n %zu)",
-          bad, nq * 4 * 2 * 7 * 2, kind, n);
+          bad, nq * 4 * 2 * 8 * 2, kind, n);
     pf_kdtree_destroy(&t);
     free(input);
 }

@@ -126,7 +126,7 @@ static pf_vec3 s_caustic(s_state *st, pf_vec3 p, pf_vec3 nf)
     float r2 = 0.0f;
     pf_vec3 e = pf_pm_irradiance_cone(c->maps->caustic, p, nf, c->settings.caustic_k, c->maps->caustic_r2,
                                       st->caustic_hint, &st->scratch, &r2);
-    st->caustic_hint = r2 < c->maps->caustic_r2 ? 2.25f * r2 : INFINITY;
+    st->caustic_hint = r2 < c->maps->caustic_r2 ? fminf(2.25f * r2, c->maps->caustic_r2) : c->maps->caustic_r2;
     st->caustic_valid = 1;
     st->caustic_p = p;
     st->caustic_n = nf;
