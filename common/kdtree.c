@@ -989,21 +989,29 @@ static int s_nearest_grid(const s_grid *g, pf_vec3 x, pf_vec3 n, float min_cos, 
         own |= (fr >= 1.0) << a;
         da2[a] = (fr - 1.0) * (fr - 1.0);
     }
-    float cd2[8];
-    int order[8];
-    for (int d = 0; d < 8; d++) {
-        int across = d ^ own;
-        double e2 = ((across & 1) ? da2[0] : 0.0) + ((across & 2) ? da2[1] : 0.0) + ((across & 4) ? da2[2] : 0.0);
-        cd2[d] = (float)(e2 * g->cell_d2);
-        int j = d;
-        for (; j > 0 && cd2[order[j - 1]] > cd2[d]; j--)
-            order[j] = order[j - 1];
-        order[j] = d;
+    /* The axes by that distance, s0 <= s1 <= s2: the cells across none,
+     * one, two or all three of them come nearest first in the order 0, s0,
+     * s1, then s2 and s0 + s1 (whichever is smaller first), s0 + s2,
+     * s1 + s2, s0 + s1 + s2. */
+    int ax[3] = { 0, 1, 2 };
+    if (da2[ax[1]] < da2[ax[0]])
+        ax[0] = 1, ax[1] = 0;
+    if (da2[ax[2]] < da2[ax[1]]) {
+        int t = ax[1];
+        ax[1] = ax[2], ax[2] = t;
+        if (da2[ax[1]] < da2[ax[0]])
+            t = ax[0], ax[0] = ax[1], ax[1] = t;
     }
+    const int m0 = 1 << ax[0], m1 = 1 << ax[1], m2 = 1 << ax[2];
+    const double s0 = da2[ax[0]], s1 = da2[ax[1]], s2 = da2[ax[2]];
+    const int two_first = s0 + s1 < s2;
+    const int across[8] = { 0, m0, m1, two_first ? m0 | m1 : m2, two_first ? m2 : m0 | m1, m0 | m2, m1 | m2, 7 };
+    const double dist[8] = { 0.0, s0, s1, two_first ? s0 + s1 : s2, two_first ? s2 : s0 + s1, s0 + s2, s1 + s2,
+                             s0 + s1 + s2 };
     for (int j = 0; j < 8; j++) {
-        int d = order[j];
-        if (got && best.d2 < cd2[d])
+        if (got && best.d2 < (float)(dist[j] * g->cell_d2))
             break;
+        int d = own ^ across[j];
         uint64_t key = s_grid_key(b[0] + (d & 1), b[1] + ((d >> 1) & 1), b[2] + (d >> 2));
         got |= s_grid_scan(g, key, q, n, min_cos, &best);
     }
