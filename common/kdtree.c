@@ -1038,7 +1038,9 @@ int pf_kdtree_nearest_normal(const pf_kdtree_t *self, pf_vec3 x, pf_vec3 n, floa
     return s_nearest_tree(self, x, n, min_cos, max_r2, out);
 }
 
-size_t pf_kdtree_radius(const pf_kdtree_t *self, pf_vec3 x, float r2, pf_knn_t *out, size_t cap)
+/* pf_kdtree_radius, giving up once more than stop photons are found (the
+ * count returned is then stop + 1 or a little more). */
+static size_t s_radius(const pf_kdtree_t *self, pf_vec3 x, float r2, pf_knn_t *out, size_t cap, size_t stop)
 {
     if (!self || self->n == 0 || s_hopeless(x, r2))
         return 0;
@@ -1086,10 +1088,20 @@ size_t pf_kdtree_radius(const pf_kdtree_t *self, pf_vec3 x, float r2, pf_knn_t *
                 stack[sp++] = (s_entry_t){ flo, fhi, 0.0f };
             }
         }
-        if (sp == 0)
+        if (sp == 0 || count > stop)
             return count;
         sp--;
         lo = stack[sp].lo;
         hi = stack[sp].hi;
     }
+}
+
+size_t pf_kdtree_radius(const pf_kdtree_t *self, pf_vec3 x, float r2, pf_knn_t *out, size_t cap)
+{
+    return s_radius(self, x, r2, out, cap, SIZE_MAX);
+}
+
+size_t pf_kdtree_radius_upto(const pf_kdtree_t *self, pf_vec3 x, float r2, pf_knn_t *out, size_t cap)
+{
+    return s_radius(self, x, r2, out, cap, cap);
 }

@@ -82,4 +82,9 @@ int pf_kdtree_index_nearest(pf_kdtree_t *self);
  * relative order, so sums over them do not depend on the radius searched. */
 size_t pf_kdtree_radius(const pf_kdtree_t *self, pf_vec3 x, float r2, pf_knn_t *out, size_t cap);
 
+/* The same, for a caller that needs the photons only when they all fit: the
+ * search stops soon after more than cap are found, and then returns some
+ * count above cap (not the total). */
+size_t pf_kdtree_radius_upto(const pf_kdtree_t *self, pf_vec3 x, float r2, pf_knn_t *out, size_t cap);
+
 #endif

@@ -178,7 +178,7 @@ static size_t s_gather(const pf_kdtree_t *map, pf_vec3 x, int k, float max_r2, f
      * one radius search then finds them all, cheaper than a heap search. */
     int whole = hint_r2 == max_r2 && isfinite(max_r2);
     if (hint_r2 < max_r2 || whole)
-        c = pf_kdtree_radius(map, x, hint_r2, found, cap);
+        c = pf_kdtree_radius_upto(map, x, hint_r2, found, cap);
     if (whole && c < kk) {
         s_sort_by_index(found, c, scratch->keys); /* as the heap path below returns them */
         return c;
@@ -205,7 +205,7 @@ static size_t s_gather(const pf_kdtree_t *map, pf_vec3 x, int k, float max_r2, f
             return 1; /* the nearest, in found[0]; over max_r2 as above */
         kth = s_knn_key(&found[0]); /* the heap's root: the k-th */
         float kth_d2 = found[0].d2;
-        c = pf_kdtree_radius(map, x, kth_d2, found, cap);
+        c = pf_kdtree_radius_upto(map, x, kth_d2, found, cap);
         if (c > cap) {
             /* More than cap photons at the k-th's very distance (coincident
              * photons): the heap's own k - 1, in its order. */

@@ -287,6 +287,21 @@ static void s_check_radius(const pf_kdtree_t *t, pf_vec3 x, const pf_knn_t *all,
         }
         free(seen);
         CHECK(ok, "%s: radius with cap %zu of %zu", what, cap, want);
+        /* radius_upto: beyond its cap only "more than cap", the same photons
+         * written; within its cap, what radius gives. */
+        pf_knn_t *first = malloc(cap * sizeof *first);
+        memcpy(first, out, cap * sizeof *first);
+        size_t upto = pf_kdtree_radius_upto(t, x, r2, out, cap);
+        CHECK(upto > cap && upto <= want && memcmp(first, out, cap * sizeof *out) == 0,
+              "%s: radius_upto with cap %zu of %zu returned %zu", what, cap, want, upto);
+        free(first);
+    }
+    if (want <= n) {
+        pf_knn_t *a = malloc((want ? want : 1) * sizeof *a), *b = malloc((want ? want : 1) * sizeof *b);
+        size_t na = pf_kdtree_radius(t, x, r2, a, want), nb = pf_kdtree_radius_upto(t, x, r2, b, want);
+        CHECK(na == nb && memcmp(a, b, na * sizeof *a) == 0, "%s: radius_upto with room for all differs", what);
+        free(a);
+        free(b);
     }
 }
 
@@ -628,6 +643,7 @@ static void s_test_from_layout(void)
 #define pf_kdtree_knn s_fallback_knn
 #define pf_kdtree_knn_heap s_fallback_knn_heap
 #define pf_kdtree_radius s_fallback_radius
+#define pf_kdtree_radius_upto s_fallback_radius_upto
 #define pf_kdtree_nearest_normal s_fallback_nearest_normal
 #define pf_kdtree_index_nearest s_fallback_index_nearest
 #include "common/kdtree.c"
@@ -640,6 +656,7 @@ static void s_test_from_layout(void)
 #undef pf_kdtree_knn
 #undef pf_kdtree_knn_heap
 #undef pf_kdtree_radius
+#undef pf_kdtree_radius_upto
 
 static void s_test_fallback(int kind, size_t n)
 {
