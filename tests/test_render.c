@@ -100,6 +100,17 @@ static pf_scene_t *s_load(const char *path)
     return scene;
 }
 
+/* The ray-tracing structure, the lights and the photon maps of scene at
+ * settings s, as a render makes them; fails the test when one cannot be. */
+static void s_photon_setup(const pf_scene_t *scene, const pf_settings_t *s, pf_accel_t **accel, pf_lights_t **lights,
+                           pf_photon_maps_t *maps, pf_photon_stats_t *st)
+{
+    pf_error_t err;
+    *accel = pf_accel_create(scene, &err);
+    *lights = pf_lights_build(scene);
+    PF_CHECK(*accel && *lights && pf_photon_pass(scene, *accel, *lights, s, maps, st) == PF_OK);
+}
+
 /* Renders a scene's image with the given threads and tile size through the
  * same steps as pf_job_render_local, and returns its photon maps too. */
 static void s_render_terms(const pf_scene_t *scene, const pf_settings_t *s0, unsigned terms, int threads, int tile,
@@ -107,11 +118,10 @@ static void s_render_terms(const pf_scene_t *scene, const pf_settings_t *s0, uns
 {
     pf_settings_t s = *s0;
     s.threads = threads;
-    pf_error_t err;
-    pf_accel_t *accel = pf_accel_create(scene, &err);
-    pf_lights_t *lights = pf_lights_build(scene);
+    pf_accel_t *accel;
+    pf_lights_t *lights;
     pf_photon_stats_t st;
-    PF_CHECK(accel && lights && pf_photon_pass(scene, accel, lights, &s, maps, &st) == PF_OK);
+    s_photon_setup(scene, &s, &accel, &lights, maps, &st);
     pf_render_ctx_t ctx;
     pf_render_ctx_init(&ctx, scene, accel, lights, maps, &s);
     ctx.terms = terms;
@@ -146,12 +156,11 @@ static void s_test_flat_points(const char *path)
     s.width = s.height = 64;
     s.photons = 200000;
     s.threads = 2;
-    pf_error_t err;
-    pf_accel_t *accel = pf_accel_create(scene, &err);
-    pf_lights_t *lights = pf_lights_build(scene);
+    pf_accel_t *accel;
+    pf_lights_t *lights;
     pf_photon_maps_t maps;
     pf_photon_stats_t st;
-    PF_CHECK(accel && lights && pf_photon_pass(scene, accel, lights, &s, &maps, &st) == PF_OK);
+    s_photon_setup(scene, &s, &accel, &lights, &maps, &st);
     pf_camera_t cam = pf_camera_make(&scene->camera, s.width, s.height);
     pf_rng_t rng = pf_rng_make(11, PF_STREAM_TEST, 0, 0);
     const pf_kdtree_t *irr = maps.irradiance;
@@ -380,12 +389,11 @@ static void s_test_skips(void)
     s.photons = 20000;
     s.caustic_photons = 20000;
     s.gather = 16;
-    pf_error_t err;
-    pf_accel_t *accel = pf_accel_create(plane, &err);
-    pf_lights_t *lights = pf_lights_build(plane);
+    pf_accel_t *accel;
+    pf_lights_t *lights;
     pf_photon_maps_t maps;
     pf_photon_stats_t st;
-    PF_CHECK(accel && lights && pf_photon_pass(plane, accel, lights, &s, &maps, &st) == PF_OK);
+    s_photon_setup(plane, &s, &accel, &lights, &maps, &st);
     CHECK(st.gather_skipped && st.indirect_stored == 0 && pf_kdtree_size(maps.irradiance) == 0,
           "plane: gather not skipped (indirect photons %llu, irradiance points %zu)",
           (unsigned long long)st.indirect_stored, pf_kdtree_size(maps.irradiance));
