@@ -974,14 +974,13 @@ static int s_nearest_grid(const s_grid *g, pf_vec3 x, pf_vec3 n, float min_cos, 
     const float q[3] = { x.x, x.y, x.z };
     pf_knn_t best = { UINT32_MAX, *max_r2 };
     int got = 0;
-    /* The block's cells nearest first (the query's own cell, at 0, then
-     * across the nearest face, ...): once the best agreeing point found is
-     * closer than the next cell's nearest face, no point there or in the
-     * cells after it can match it (margin as for exact_d2) and they are not
-     * read. */
-    /* Per axis, the query's side of the block (its own cell) and its
-     * squared distance to the block's middle face, in cells; a cell's
-     * distance sums those of the axes it lies across. */
+    /* The block's cells are read nearest first (the query's own cell, at 0,
+     * then across the nearest face, ...): once the best agreeing point found
+     * is closer than the next cell, no point there or in the cells after it
+     * can match it (margin as for exact_d2) and they are not read. Per axis:
+     * the query's side of the block (its own cell) and its squared distance
+     * to the block's middle face, in cells; a cell's distance sums those of
+     * the axes it lies across. */
     int own = 0;
     double da2[3];
     for (int a = 0; a < 3; a++) {
