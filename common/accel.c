@@ -206,6 +206,7 @@ int pf_accel_intersect(const pf_accel_t *self, const pf_ray_t *ray, float tmax, 
         hit->ng = n;
         hit->ns = n;
         hit->mat = s->mat;
+        hit->u = hit->v = 0.0f;
         return 1;
     }
     const pf_mesh_t *mesh = &scene->meshes[rh.hit.geomID];
@@ -227,6 +228,8 @@ int pf_accel_intersect(const pf_accel_t *self, const pf_ray_t *ray, float tmax, 
     hit->ng = ng;
     hit->ns = ns;
     hit->mat = mesh->mat[rh.hit.primID];
+    hit->u = b1;
+    hit->v = b2;
     return 1;
 }
 

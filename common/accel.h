@@ -24,6 +24,7 @@ typedef struct pf_hit {
     uint32_t mat;  /* material index */
     uint32_t geom; /* mesh index, or nmeshes for spheres */
     uint32_t prim; /* triangle or sphere index */
+    float u, v;    /* barycentrics of p1 and p2 on a triangle (p = (1 - u - v) p0 + u p1 + v p2); 0 on spheres */
 } pf_hit_t;
 
 /* Builds the acceleration structure for a finalized scene. NULL with err

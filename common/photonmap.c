@@ -4,10 +4,13 @@
  * so results are reproducible bit for bit. */
 #include "common/photonmap.h"
 
+#include <math.h>
 #include <stddef.h>
 #include <string.h>
 
 #include "common/bsdf.h"
+#include "common/irrtex.h"
+#include "common/log.h"
 #include "common/photon.h"
 #include "common/status.h"
 
@@ -18,12 +21,39 @@ void pf_photon_maps_free(pf_photon_maps_t *maps)
     pf_kdtree_destroy(&maps->global);
     pf_kdtree_destroy(&maps->caustic);
     pf_kdtree_destroy(&maps->irradiance);
+    pf_irrtex_destroy(&maps->texels);
     memset(maps, 0, sizeof *maps);
 }
 
-int pf_photon_maps_index(pf_photon_maps_t *maps)
+int pf_photon_maps_index(pf_photon_maps_t *maps, const pf_scene_t *scene, const pf_accel_t *accel)
 {
-    return maps->irradiance ? pf_kdtree_index_nearest(maps->irradiance) : PF_OK;
+    if (!maps->irradiance)
+        return PF_OK;
+    int rc = pf_kdtree_index_nearest(maps->irradiance);
+    if (accel && !maps->texels) {
+        maps->texels = pf_irrtex_create(scene, accel, maps->irradiance, maps->irradiance_r2);
+        if (!maps->texels && rc == PF_OK && pf_kdtree_size(maps->irradiance))
+            pf_debug("irradiance texels: none (the scene does not fit them, or out of memory); direct lookups");
+    }
+    return rc;
+}
+
+pf_vec3 pf_irradiance_lookup(const pf_kdtree_t *irr, float irr_r2, const pf_accel_t *accel, pf_vec3 p, pf_vec3 nf)
+{
+    pf_knn_t near;
+    if (!irr || !pf_kdtree_nearest_normal(irr, p, nf, PF_NORMAL_AGREE, irr_r2, &near))
+        return pf_v3s(0.0f);
+    const pf_photon_t *q = &pf_kdtree_photons(irr)[near.index];
+    float r = pf_irradiance_radius(q);
+    if (!(near.d2 <= r * r))
+        return pf_v3s(0.0f);
+    float d = sqrtf(near.d2);
+    pf_ray_t ray;
+    float len;
+    if (pf_irradiance_leak_test(q, d, pf_accel_eps(accel)) && pf_irradiance_leak_ray(p, nf, q, d, &ray, &len) &&
+        pf_accel_occluded(accel, &ray, len))
+        return pf_v3s(0.0f);
+    return pf_photon_power(q);
 }
 
 /* An entry as one integer in (d2, index) order, the order of the k nearest: a squared distance is >= 0

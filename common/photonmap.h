@@ -19,13 +19,16 @@ typedef struct pf_photon_maps {
     float global_r2;          /* max squared search radius of global estimates */
     float caustic_r2;         /* max squared search radius of caustic estimates */
     float irradiance_r2;      /* max squared distance to an irradiance point */
+    struct pf_irrtex *texels; /* the irradiance lookups stored with the surface (irrtex.h), or NULL */
 } pf_photon_maps_t;
 
-/* Readies the maps for rendering: builds the irradiance tree's nearest-point
- * grid (pf_kdtree_index_nearest), which makes the final gather's lookups
- * several times faster without changing a result. 0 or PF_ENOMEM (the maps
- * stay usable, only slower). */
-int pf_photon_maps_index(pf_photon_maps_t *maps);
+/* Readies the maps for rendering the scene of accel: builds the irradiance
+ * tree's nearest-point grid (pf_kdtree_index_nearest), which makes direct
+ * lookups several times faster without changing a result, and, with accel,
+ * the surface's irradiance texels (pf_irrtex_create), which answer the final
+ * gather's lookups from their centres. Scene and accel must outlive the
+ * maps. 0 or PF_ENOMEM (the maps stay usable, only slower). */
+int pf_photon_maps_index(pf_photon_maps_t *maps, const pf_scene_t *scene, const pf_accel_t *accel);
 
 /* Frees the trees; NULL-safe; leaves the struct zeroed. */
 void pf_photon_maps_free(pf_photon_maps_t *maps);
@@ -111,6 +114,16 @@ static inline int pf_irradiance_leak_ray(pf_vec3 p, pf_vec3 nf, const pf_photon_
     *ray = (pf_ray_t){ a, pf_scale(ab, 1.0f / *len) };
     return 1;
 }
+
+/* Irradiance at p (face normal nf, towards the viewer) from the
+ * precomputed points irr (squared reach irr_r2): that of the nearest point q
+ * with an agreeing normal, if p lies within q's support (the disc its
+ * estimate averaged over) and q is visible from p (the leak test's ray,
+ * where q is not flat); zero otherwise, since then no photon landed near p
+ * on its side of any wall. Without the visibility test the final gather
+ * reads light through walls (the stress suite's thin wall and closed
+ * crate). Safe from any thread once irr is indexed or not. */
+pf_vec3 pf_irradiance_lookup(const pf_kdtree_t *irr, float irr_r2, const pf_accel_t *accel, pf_vec3 p, pf_vec3 nf);
 
 /* The same with a cone filter (Jensen 2001, 7.2.2, k = 1): weight
  * 1 - d / r, normalized by 1 - 2 / 3 over the disc, which sharpens caustics.

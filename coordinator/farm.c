@@ -111,7 +111,7 @@ static void *s_photon_thread(void *arg)
         pf_photon_skip_gather(&p->stats, &p->settings);
     if (p->rc == PF_OK && p->budget) {
         /* The probe renders here with the coordinator's cores, as the workers will. */
-        pf_photon_maps_index(&p->maps);
+        pf_photon_maps_index(&p->maps, p->scene, p->accel);
         pf_budget_plan_spp(p->budget, p->scene, p->accel, p->lights, &p->maps, p->terms, p->settings.threads,
                            &p->settings);
         pf_budget_log(p->budget, &p->settings);

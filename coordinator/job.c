@@ -58,7 +58,7 @@ int pf_job_render(const pf_scene_t *scene, const pf_settings_t *settings, unsign
                 (unsigned long long)summary->photons.irradiance_points, summary->photons.trace_s,
                 summary->photons.build_s, summary->photons.irradiance_s);
         pf_photon_skip_gather(&summary->photons, &s);
-        if (pf_photon_maps_index(&maps) != PF_OK)
+        if (pf_photon_maps_index(&maps, scene, accel) != PF_OK)
             pf_warn("out of memory for the irradiance lookup grid: rendering goes on, slower");
         if (budget) {
             pf_budget_plan_spp(budget, scene, accel, lights, &maps, terms, threads, &s);

@@ -258,6 +258,8 @@ static int s_job_begin(s_job_t *job, const char *what, const pf_scene_t *scene, 
     if (rc == PF_OK) {
         rc = pf_photon_pass(scene, job->accel, job->lights, &job->settings, &job->maps, &job->stats);
         CHECK(rc == PF_OK, "%s: photon pass: %s", what, pf_strerror(rc));
+        if (rc == PF_OK)
+            pf_photon_maps_index(&job->maps, scene, job->accel);
     }
     if (rc != PF_OK) {
         pf_lights_destroy(&job->lights);

@@ -663,7 +663,9 @@ static int s_fixture_make(s_fixture_t *fx)
     CHECK(fx->maps_blob.len > 12 * PF_PROTO_CHUNK_SIZE, "the map blob (%zu bytes) spans more chunks than the window",
           fx->maps_blob.len);
 
-    /* The reference: pf_render_tile in this process, tile by tile. */
+    /* The reference: pf_render_tile in this process, tile by tile, with the
+     * maps readied as a worker readies them (irradiance texels). */
+    CHECK(pf_photon_maps_index(&fx->maps, fx->scene, fx->accel) == PF_OK, "index the maps");
     pf_render_ctx_t ctx;
     pf_render_ctx_init(&ctx, fx->scene, fx->accel, fx->lights, &fx->maps, &s);
     ctx.terms = fx->terms;

@@ -274,7 +274,7 @@ static void s_compute_build(s_work *it)
         snprintf(it->error, sizeof it->error, "photon-map blob %016" PRIx64 " rejected: %s", d->maps_hash, err.msg);
         goto fail;
     }
-    if (pf_photon_maps_index(&b->maps) != PF_OK)
+    if (pf_photon_maps_index(&b->maps, b->scene, b->accel) != PF_OK)
         pf_warn("out of memory for the irradiance lookup grid: rendering goes on, slower");
     it->built = b;
     return;

@@ -58,6 +58,7 @@
 #include <string.h>
 
 #include "common/bsdf.h"
+#include "common/irrtex.h"
 #include "common/log.h"
 #include "common/rng.h"
 
@@ -177,33 +178,18 @@ static pf_vec3 s_direct(s_state *st, const pf_hit_t *h, const pf_material_t *m, 
     return pf_scale(sum, 1.0f / (float)n);
 }
 
-/* Irradiance at a gather hit p: that of the nearest precomputed point q with
- * an agreeing normal, if p lies within q's support (the disc its estimate
- * averaged over) and q is visible from p; zero otherwise, since then no
- * photon landed near p on its side of any wall. The visibility ray runs
- * between p and q both lifted off the surface by their distance d, which
- * clears a convex surface (a chord's sagitta d^2 / 8R is below d) but not a
- * wall standing between them: without it the final gather reads light
- * through walls (the stress suite's thin wall and closed crate). Points with
- * nothing but their own plane nearby need no ray (pf_irradiance_leak_test). */
-static pf_vec3 s_irradiance(s_state *st, pf_vec3 p, pf_vec3 nf)
+/* Irradiance at a gather hit h (face normal nf): its texel's, where the maps
+ * have texels for its primitive (irrtex.h: the direct lookup made at the
+ * texel's centre), else the direct lookup (pf_irradiance_lookup: the nearest
+ * precomputed point with an agreeing normal, within its support, visible). */
+static pf_vec3 s_irradiance(s_state *st, const pf_hit_t *h, pf_vec3 nf)
 {
     const pf_render_ctx_t *c = st->ctx;
     const pf_photon_maps_t *pm = c->maps;
-    pf_knn_t near;
-    if (!pm->irradiance || !pf_kdtree_nearest_normal(pm->irradiance, p, nf, PF_NORMAL_AGREE, pm->irradiance_r2, &near))
-        return pf_v3s(0.0f);
-    const pf_photon_t *q = &pf_kdtree_photons(pm->irradiance)[near.index];
-    float r = pf_irradiance_radius(q);
-    if (!(near.d2 <= r * r))
-        return pf_v3s(0.0f);
-    float d = sqrtf(near.d2);
-    pf_ray_t ray;
-    float len;
-    if (pf_irradiance_leak_test(q, d, pf_accel_eps(c->accel)) && pf_irradiance_leak_ray(p, nf, q, d, &ray, &len) &&
-        pf_accel_occluded(c->accel, &ray, len))
-        return pf_v3s(0.0f);
-    return pf_photon_power(q);
+    pf_vec3 e;
+    if (pm->texels && pf_irrtex_lookup(pm->texels, h, nf, &e))
+        return e;
+    return pf_irradiance_lookup(pm->irradiance, pm->irradiance_r2, c->accel, h->p, nf);
 }
 
 /* Radiance leaving the first non-specular surface a gather ray reaches,
@@ -229,7 +215,7 @@ static pf_vec3 s_gather_ray(s_state *st, pf_ray_t ray)
                 l = pf_pm_radiance(c->maps->global, m, h.p, nf, wo, c->settings.global_k, c->maps->global_r2,
                                    &st->scratch);
             else
-                l = pf_scale(pf_mul(m->kd, s_irradiance(st, h.p, nf)), PF_INV_PI);
+                l = pf_scale(pf_mul(m->kd, s_irradiance(st, &h, nf)), PF_INV_PI);
             return pf_mul(thr, l);
         }
         pf_vec3 wi;
