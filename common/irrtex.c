@@ -37,6 +37,7 @@ struct pf_irrtex {
     s_prim *prims;
     s_texel *texels;
     size_t ntexels;
+    _Atomic size_t filled, direct; /* fills so far (two threads filling one texel at once count twice) */
 };
 
 /* Texels along a triangle's edge for its longest edge at the given texel side; 0 when more than PF_IRRTEX_MAX_RES. */
@@ -255,9 +256,12 @@ int pf_irrtex_lookup(pf_irrtex_t *self, const pf_hit_t *h, pf_vec3 nf, pf_vec3 *
         pf_vec3 c, n;
         float reach;
         s_locate(self, h, nf, &c, &n, &reach);
-        b = s_direct(self, c, n, reach) ? S_FILLED | S_DIRECT
-                                        : s_pack(pf_irradiance_lookup(self->irr, self->irr_r2, self->accel, c, n));
+        int direct = s_direct(self, c, n, reach);
+        b = direct ? S_FILLED | S_DIRECT : s_pack(pf_irradiance_lookup(self->irr, self->irr_r2, self->accel, c, n));
         atomic_store_explicit(&self->texels[i], b, memory_order_relaxed);
+        atomic_fetch_add_explicit(&self->filled, 1, memory_order_relaxed);
+        if (direct)
+            atomic_fetch_add_explicit(&self->direct, 1, memory_order_relaxed);
     }
     if (b & S_DIRECT)
         return 0;
@@ -270,13 +274,7 @@ size_t pf_irrtex_count(const pf_irrtex_t *self) { return self->ntexels; }
 
 size_t pf_irrtex_filled(const pf_irrtex_t *self, size_t *direct)
 {
-    size_t n = 0, d = 0;
-    for (size_t i = 0; i < self->ntexels; i++) {
-        uint64_t b = atomic_load_explicit(&self->texels[i], memory_order_relaxed);
-        n += b != 0;
-        d += (b & S_DIRECT) != 0;
-    }
     if (direct)
-        *direct = d;
-    return n;
+        *direct = atomic_load_explicit(&self->direct, memory_order_relaxed);
+    return atomic_load_explicit(&self->filled, memory_order_relaxed);
 }

@@ -66,8 +66,9 @@ int pf_irrtex_centre(const pf_irrtex_t *self, const pf_hit_t *h, pf_vec3 nf, pf_
  * rounded to 12 mantissa bits, a relative error of at most 2^-13. */
 pf_vec3 pf_irrtex_quantize(pf_vec3 e);
 
-/* The texel side in world units, the texels allocated, and those filled so
- * far (of which *direct, unless NULL, send their hits to the direct lookup). */
+/* The texel side in world units, the texels allocated, and the fills so far
+ * (of which *direct, unless NULL, sent their hits to the direct lookup); a
+ * texel two threads filled at once counts twice. */
 float pf_irrtex_side(const pf_irrtex_t *self);
 size_t pf_irrtex_count(const pf_irrtex_t *self);
 size_t pf_irrtex_filled(const pf_irrtex_t *self, size_t *direct);

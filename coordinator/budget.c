@@ -10,6 +10,7 @@
 
 #include "common/log.h"
 #include "coordinator/photon_trace.h"
+#include "common/irrtex.h"
 #include "worker/render.h"
 
 /* Writing the image and the farm's last results take a moment after the
@@ -93,7 +94,7 @@ enum { S_PROBE_BLOCK = 8 };
  * gathers of a block's border costed as the render's tiles will carry them. */
 static double s_probe(pf_budget_t *b, const pf_scene_t *scene, const pf_accel_t *accel, const pf_lights_t *lights,
                       const pf_photon_maps_t *maps, unsigned terms, int local_threads, const pf_settings_t *base,
-                      int spp)
+                      int spp, uint64_t *samples)
 {
     pf_settings_t probe = *base;
     probe.spp = spp;
@@ -148,6 +149,7 @@ static double s_probe(pf_budget_t *b, const pf_scene_t *scene, const pf_accel_t 
              " samples, rendering %.3f s for %" PRIu64 " samples: %.2f us per sample",
              spp, n, pf_now() - wall0, local_threads, cost.record_s, cost.record_samples, cost.render_s, cost.samples,
              sample_s * 1e6);
+    *samples = cost.samples;
     return sample_s;
 }
 
@@ -163,8 +165,25 @@ void pf_budget_plan_spp(pf_budget_t *b, const pf_scene_t *scene, const pf_accel_
      * planned, 16.2 s taken, cornell-spheres at 30 s). Two probes, at
      * S_PROBE_LO and S_PROBE_HI, give p and c. */
     enum { S_PROBE_LO = 2, S_PROBE_HI = 8 };
-    double e_lo = s_probe(b, scene, accel, lights, maps, terms, local_threads, s, S_PROBE_LO);
-    double e_hi = s_probe(b, scene, accel, lights, maps, terms, local_threads, s, S_PROBE_HI);
+    /* Irradiance texels fill on first use (irrtex.h), in every process that
+     * renders. A probe that fills them pays for fills a render pays once
+     * over the whole image, far fewer per sample; taken as the cost of
+     * samples it planned renders that left half the limit unused
+     * (cornell-spheres at 120 s: 61 s). So each probe runs twice and the
+     * second, which finds its texels filled, is timed; the render's fills
+     * are costed apart: what the first probe took beyond its second, per
+     * fill, times the fills a render makes (the probe's scaled to the image,
+     * at most every texel left). */
+    const pf_irrtex_t *tex = maps->texels;
+    size_t f0 = tex ? pf_irrtex_filled(tex, NULL) : 0;
+    uint64_t n_lo, n_hi, n_cold;
+    double e_cold = s_probe(b, scene, accel, lights, maps, terms, local_threads, s, S_PROBE_LO, &n_cold);
+    size_t fills = tex ? pf_irrtex_filled(tex, NULL) - f0 : 0;
+    double e_lo = s_probe(b, scene, accel, lights, maps, terms, local_threads, s, S_PROBE_LO, &n_lo);
+    double e_hi = s_probe(b, scene, accel, lights, maps, terms, local_threads, s, S_PROBE_HI, &n_hi);
+    if (tex)
+        e_hi = s_probe(b, scene, accel, lights, maps, terms, local_threads, s, S_PROBE_HI, &n_hi);
+    double per_fill = fills && n_cold && e_cold > e_lo ? (e_cold - e_lo) * (double)n_cold / (double)fills : 0.0;
     double c = (S_PROBE_HI * e_hi - S_PROBE_LO * e_lo) / (S_PROBE_HI - S_PROBE_LO);
     double p = S_PROBE_LO * (e_lo - c);
     if (!(c > 0.0) || !(p >= 0.0)) {
@@ -179,6 +198,18 @@ void pf_budget_plan_spp(pf_budget_t *b, const pf_scene_t *scene, const pf_accel_
     double left = pf_budget_left(b) - S_RESERVE_S - S_RESERVE_SHARE * b->limit_s;
     double per_spp = (double)npx * c / (double)b->render_threads;
     double fixed = (double)npx * p / (double)b->render_threads;
+    b->fill_s = 0.0;
+    if (per_fill > 0.0) {
+        /* Each worker fills its own texels on its own threads (taken as
+         * this machine's). */
+        double probe_px = (double)n_cold / S_PROBE_LO;
+        double render_fills = fmin((double)fills * (double)npx / probe_px,
+                                   (double)(pf_irrtex_count(tex) - pf_irrtex_filled(tex, NULL)));
+        b->fill_s = render_fills * per_fill / (double)(local_threads > 0 ? local_threads : 1);
+        fixed += b->fill_s;
+        pf_debug("time limit: %zu texel fills in the first probe at %.2f us each; the render's fills planned at %.2f s",
+                 fills, per_fill * 1e6, b->fill_s);
+    }
     double spp = per_spp > 0.0 ? floor((S_SAFETY * left - fixed) / per_spp) : 1.0;
     if (!(spp >= 1.0)) {
         pf_warn("time limit: even one sample per pixel needs about %.1f s more than the %.1f s left; "

@@ -20,7 +20,11 @@
  *      render's tiles will carry them); spp is the number of samples per
  *      pixel that fills the time left (less a reserve for writing the image
  *      and a safety margin) on all the threads that will render: this
- *      process's, or every worker's together.
+ *      process's, or every worker's together. The irradiance texels
+ *      (irrtex.h) fill on first use: a first probe fills the probe's, and
+ *      the render's fills are costed apart (what the probe paid per fill
+ *      beyond the same probe warm, times its fills scaled to the image, at
+ *      most every texel), once per worker.
  * The image is then rendered in one pass with that spp, so it is the same
  * image a render with those settings gives (deterministic given the choices;
  * the choices depend on the machine's speed). */
@@ -56,6 +60,7 @@ typedef struct pf_budget {
     /* Filled in as the plan is made, for the summary. */
     double photon_s_per_photon; /* calibration: seconds per photon */
     double pixel_s, sample_s;   /* thread-seconds a pixel costs: pixel_s + spp * sample_s */
+    double fill_s;              /* seconds the render's irradiance-texel fills add, once per worker */
     double planned_render_s;
 } pf_budget_t;
 

@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include "common/accel.h"
+#include "common/irrtex.h"
 #include "common/light.h"
 #include "common/log.h"
 #include "coordinator/progress.h"
@@ -73,6 +74,11 @@ int pf_job_render(const pf_scene_t *scene, const pf_settings_t *settings, unsign
         pf_render_image(&ctx, img, threads, 32, pf_progress_tiles, &bar);
         pf_progress_end(&bar);
         summary->render_s = pf_now() - t2;
+        if (maps.texels) {
+            size_t direct, filled = pf_irrtex_filled(maps.texels, &direct);
+            pf_debug("irradiance texels: side %g, %zu filled of %zu (%zu send hits to the full lookup)",
+                     (double)pf_irrtex_side(maps.texels), filled, pf_irrtex_count(maps.texels), direct);
+        }
         size_t neg = 0;
         summary->bad_pixels = pf_image_count_bad(img, &neg) + neg;
     } else {

@@ -146,6 +146,25 @@ static int s_same_tree(const pf_kdtree_t *a, const pf_kdtree_t *b)
     return n == pf_kdtree_size(b) && memcmp(pf_kdtree_photons(a), pf_kdtree_photons(b), n * sizeof(pf_photon_t)) == 0;
 }
 
+/* A gather hit as the integrator makes them: a camera ray through a random
+ * point of the image, then a cosine-distributed ray from its hit. 1 with *h
+ * and *nf (its face normal towards the gather ray's origin) when that ray
+ * meets a diffuse surface. */
+static int s_gather_hit(const pf_scene_t *scene, const pf_accel_t *accel, const pf_camera_t *cam, int w, int hgt,
+                        pf_rng_t *rng, pf_hit_t *h, pf_vec3 *nf)
+{
+    pf_ray_t ray = pf_camera_ray(cam, (float)w * pf_rng_float(rng), (float)hgt * pf_rng_float(rng));
+    if (!pf_accel_intersect(accel, &ray, INFINITY, h))
+        return 0;
+    pf_vec3 n = pf_face_forward(h->ng, pf_neg(ray.d));
+    pf_vec3 wi = pf_to_world(pf_sample_cosine(pf_rng_float(rng), pf_rng_float(rng)), n);
+    if (!pf_accel_intersect(accel, &(pf_ray_t){ pf_spawn_ray(h, wi).o, wi }, INFINITY, h) ||
+        scene->mats[h->mat].type != PF_MAT_DIFFUSE)
+        return 0;
+    *nf = pf_face_forward(h->ng, pf_neg(wi));
+    return 1;
+}
+
 /* Flat irradiance points (photonmap.h) let a lookup skip the leak test's
  * ray. Over the lookups of gather rays from camera hits on a scene, every
  * skipped ray, traced anyway, must hit nothing (else the skip changes the
@@ -170,17 +189,10 @@ static void s_test_flat_points(const char *path)
     float eps = pf_accel_eps(accel);
     long lookups = 0, skipped = 0, skipped_hit = 0, traced = 0, traced_hit = 0;
     for (int i = 0; i < 40000; i++) {
-        pf_ray_t ray = pf_camera_ray(&cam, (float)s.width * pf_rng_float(&rng), (float)s.height * pf_rng_float(&rng));
         pf_hit_t h;
-        /* a camera hit, then a gather ray from it (uniform over the hemisphere) */
-        if (!pf_accel_intersect(accel, &ray, INFINITY, &h))
+        pf_vec3 nf;
+        if (!s_gather_hit(scene, accel, &cam, s.width, s.height, &rng, &h, &nf))
             continue;
-        pf_vec3 nf = pf_face_forward(h.ng, pf_neg(ray.d));
-        pf_vec3 wi = pf_to_world(pf_sample_cosine(pf_rng_float(&rng), pf_rng_float(&rng)), nf);
-        if (!pf_accel_intersect(accel, &(pf_ray_t){ pf_spawn_ray(&h, wi).o, wi }, INFINITY, &h) ||
-            scene->mats[h.mat].type != PF_MAT_DIFFUSE)
-            continue;
-        nf = pf_face_forward(h.ng, pf_neg(wi));
         pf_knn_t nn;
         if (!pf_kdtree_nearest_normal(irr, h.p, nf, PF_NORMAL_AGREE, maps.irradiance_r2, &nn))
             continue;
@@ -303,16 +315,10 @@ static void s_test_texels(const char *path)
     pf_rng_t rng = pf_rng_make(13, PF_STREAM_TEST, 0, 0);
     long hits = 0, answered = 0, far = 0, wrong = 0, direct_ok = 0;
     for (int i = 0; i < 40000; i++) {
-        pf_ray_t ray = pf_camera_ray(&cam, (float)s.width * pf_rng_float(&rng), (float)s.height * pf_rng_float(&rng));
         pf_hit_t h;
-        if (!pf_accel_intersect(accel, &ray, INFINITY, &h))
+        pf_vec3 nf;
+        if (!s_gather_hit(scene, accel, &cam, s.width, s.height, &rng, &h, &nf) || h.geom >= scene->nmeshes)
             continue;
-        pf_vec3 nf = pf_face_forward(h.ng, pf_neg(ray.d));
-        pf_vec3 wi = pf_to_world(pf_sample_cosine(pf_rng_float(&rng), pf_rng_float(&rng)), nf);
-        if (!pf_accel_intersect(accel, &(pf_ray_t){ pf_spawn_ray(&h, wi).o, wi }, INFINITY, &h) ||
-            scene->mats[h.mat].type != PF_MAT_DIFFUSE || h.geom >= scene->nmeshes)
-            continue;
-        nf = pf_face_forward(h.ng, pf_neg(wi));
         hits++;
         pf_vec3 c, n, e;
         int direct;

@@ -1,6 +1,8 @@
 /* render.c: the integrator: radiance along camera rays from direct light,
  * mirror and glass recursion, the caustic map and a final gather over the
- * precomputed irradiance (Jensen 2001, ch. 9; Christensen 1999).
+ * precomputed irradiance (Jensen 2001, ch. 9; Christensen 1999), which the
+ * gather reads through the surface's irradiance texels (common/irrtex.h)
+ * where the maps are indexed.
  *
  * Parameters (pf_settings_t; defaults in scene.c):
  *   spp            36   camera samples per pixel, stratified kx x ky (box filter)
