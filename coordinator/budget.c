@@ -94,7 +94,7 @@ enum { S_PROBE_BLOCK = 8 };
  * gathers of a block's border costed as the render's tiles will carry them. */
 static double s_probe(pf_budget_t *b, const pf_scene_t *scene, const pf_accel_t *accel, const pf_lights_t *lights,
                       const pf_photon_maps_t *maps, unsigned terms, int local_threads, const pf_settings_t *base,
-                      int spp, uint64_t *samples)
+                      int spp, int lattice, uint64_t *samples)
 {
     pf_settings_t probe = *base;
     probe.spp = spp;
@@ -123,8 +123,8 @@ static double s_probe(pf_budget_t *b, const pf_scene_t *scene, const pf_accel_t 
         pf_tile_cost_t mine = { 0 };
 #pragma omp for schedule(dynamic, 1)
         for (int i = 0; i < n; i++) {
-            int x0 = (int)(((2 * (int64_t)(i % gx) + 1) * bx) / (2 * gx)) * S_PROBE_BLOCK;
-            int y0 = (int)(((2 * (int64_t)(i / gx) + 1) * by) / (2 * gy)) * S_PROBE_BLOCK;
+            int x0 = (int)(((2 * (int64_t)(i % gx) + lattice) * bx) / (2 * gx)) * S_PROBE_BLOCK;
+            int y0 = (int)(((2 * (int64_t)(i / gx) + lattice) * by) / (2 * gy)) * S_PROBE_BLOCK;
             int w = x0 + S_PROBE_BLOCK <= base->width ? S_PROBE_BLOCK : base->width - x0;
             int h = y0 + S_PROBE_BLOCK <= base->height ? S_PROBE_BLOCK : base->height - y0;
             pf_render_tile_cost(&ctx, x0, y0, w, h, px, &mine);
@@ -169,20 +169,21 @@ void pf_budget_plan_spp(pf_budget_t *b, const pf_scene_t *scene, const pf_accel_
      * renders. A probe that fills them pays for fills a render pays once
      * over the whole image, far fewer per sample; taken as the cost of
      * samples it planned renders that left half the limit unused
-     * (cornell-spheres at 120 s: 61 s). So each probe runs twice and the
-     * second, which finds its texels filled, is timed; the render's fills
-     * are costed apart: what the first probe took beyond its second, per
-     * fill, times the fills a render makes (the probe's scaled to the image,
-     * at most every texel left). */
+     * (cornell-spheres at 120 s: 61 s). So a first probe on blocks of its
+     * own (the lattice's corners) fills texels the gather rays of any
+     * pixel meet, and the two timed probes (the lattice's centres) find
+     * most of theirs filled. Timing the same blocks twice instead, the
+     * second run in cache, planned a render at 10 s that took 9.8. The
+     * render's fills are costed apart: what the first probe took per
+     * sample beyond the second, per fill, times the first probe's fills
+     * scaled to the image (at most every texel left). */
     const pf_irrtex_t *tex = maps->texels;
     size_t f0 = tex ? pf_irrtex_filled(tex, NULL) : 0;
-    uint64_t n_lo, n_hi, n_cold;
-    double e_cold = s_probe(b, scene, accel, lights, maps, terms, local_threads, s, S_PROBE_LO, &n_cold);
+    uint64_t n_lo, n_hi, n_cold = 0;
+    double e_cold = tex ? s_probe(b, scene, accel, lights, maps, terms, local_threads, s, S_PROBE_LO, 0, &n_cold) : 0.0;
     size_t fills = tex ? pf_irrtex_filled(tex, NULL) - f0 : 0;
-    double e_lo = s_probe(b, scene, accel, lights, maps, terms, local_threads, s, S_PROBE_LO, &n_lo);
-    double e_hi = s_probe(b, scene, accel, lights, maps, terms, local_threads, s, S_PROBE_HI, &n_hi);
-    if (tex)
-        e_hi = s_probe(b, scene, accel, lights, maps, terms, local_threads, s, S_PROBE_HI, &n_hi);
+    double e_lo = s_probe(b, scene, accel, lights, maps, terms, local_threads, s, S_PROBE_LO, 1, &n_lo);
+    double e_hi = s_probe(b, scene, accel, lights, maps, terms, local_threads, s, S_PROBE_HI, 1, &n_hi);
     double per_fill = fills && n_cold && e_cold > e_lo ? (e_cold - e_lo) * (double)n_cold / (double)fills : 0.0;
     double c = (S_PROBE_HI * e_hi - S_PROBE_LO * e_lo) / (S_PROBE_HI - S_PROBE_LO);
     double p = S_PROBE_LO * (e_lo - c);
