@@ -21,10 +21,10 @@
  *      pixel that fills the time left (less a reserve for writing the image
  *      and a safety margin) on all the threads that will render: this
  *      process's, or every worker's together. The irradiance texels
- *      (irrtex.h) fill on first use: a first probe fills the probe's, and
- *      the render's fills are costed apart (what the probe paid per fill
- *      beyond the same probe warm, times its fills scaled to the image, at
- *      most every texel), once per worker.
+ *      (irrtex.h) fill on first use, far more per sample in a probe than in
+ *      a render: the fills' time is taken out of the probes' and the
+ *      render's fills costed apart (every texel at the probes' mean time
+ *      per fill, once per worker).
  * The image is then rendered in one pass with that spp, so it is the same
  * image a render with those settings gives (deterministic given the choices;
  * the choices depend on the machine's speed). */
