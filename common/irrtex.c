@@ -38,7 +38,6 @@ struct pf_irrtex {
     s_texel *texels;
     size_t ntexels;
     _Atomic size_t filled, direct; /* fills so far (two threads filling one texel at once count twice) */
-    _Atomic uint64_t fill_ns;      /* thread-time they took */
 };
 
 /* Texels along a triangle's edge for its longest edge at the given texel side; 0 when more than PF_IRRTEX_MAX_RES. */
@@ -254,7 +253,6 @@ int pf_irrtex_lookup(pf_irrtex_t *self, const pf_hit_t *h, pf_vec3 nf, pf_vec3 *
         return 0;
     uint64_t b = atomic_load_explicit(&self->texels[i], memory_order_relaxed);
     if (!b) {
-        double t0 = pf_now();
         pf_vec3 c, n;
         float reach;
         s_locate(self, h, nf, &c, &n, &reach);
@@ -264,7 +262,6 @@ int pf_irrtex_lookup(pf_irrtex_t *self, const pf_hit_t *h, pf_vec3 nf, pf_vec3 *
         atomic_fetch_add_explicit(&self->filled, 1, memory_order_relaxed);
         if (direct)
             atomic_fetch_add_explicit(&self->direct, 1, memory_order_relaxed);
-        atomic_fetch_add_explicit(&self->fill_ns, (uint64_t)((pf_now() - t0) * 1e9), memory_order_relaxed);
     }
     if (b & S_DIRECT)
         return 0;
@@ -280,9 +277,4 @@ size_t pf_irrtex_filled(const pf_irrtex_t *self, size_t *direct)
     if (direct)
         *direct = atomic_load_explicit(&self->direct, memory_order_relaxed);
     return atomic_load_explicit(&self->filled, memory_order_relaxed);
-}
-
-double pf_irrtex_fill_s(const pf_irrtex_t *self)
-{
-    return (double)atomic_load_explicit(&self->fill_ns, memory_order_relaxed) * 1e-9;
 }

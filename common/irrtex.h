@@ -72,8 +72,6 @@ pf_vec3 pf_irrtex_quantize(pf_vec3 e);
 float pf_irrtex_side(const pf_irrtex_t *self);
 size_t pf_irrtex_count(const pf_irrtex_t *self);
 size_t pf_irrtex_filled(const pf_irrtex_t *self, size_t *direct);
-/* The thread-seconds the fills so far took (for planning: --time-limit). */
-double pf_irrtex_fill_s(const pf_irrtex_t *self);
 
 /* A triangle's texel at barycentrics (b1, b2) (p = b0 p0 + b1 p1 + b2 p2)
  * for R texels along each edge: its index in [0, R^2) and its centroid's

@@ -10,7 +10,6 @@
 
 #include "common/log.h"
 #include "coordinator/photon_trace.h"
-#include "common/irrtex.h"
 #include "worker/render.h"
 
 /* Writing the image and the farm's last results take a moment after the
@@ -94,7 +93,7 @@ enum { S_PROBE_BLOCK = 8 };
  * gathers of a block's border costed as the render's tiles will carry them. */
 static double s_probe(pf_budget_t *b, const pf_scene_t *scene, const pf_accel_t *accel, const pf_lights_t *lights,
                       const pf_photon_maps_t *maps, unsigned terms, int local_threads, const pf_settings_t *base,
-                      int spp, int lattice)
+                      int spp)
 {
     pf_settings_t probe = *base;
     probe.spp = spp;
@@ -115,7 +114,7 @@ static double s_probe(pf_budget_t *b, const pf_scene_t *scene, const pf_accel_t 
     if (local_threads < 1)
         local_threads = 1;
     pf_tile_cost_t cost = { 0 };
-    double wall0 = pf_now(), fill0 = maps->texels ? pf_irrtex_fill_s(maps->texels) : 0.0;
+    double wall0 = pf_now();
 #pragma omp parallel num_threads(local_threads)
     {
         pf_accel_thread_init();
@@ -123,8 +122,8 @@ static double s_probe(pf_budget_t *b, const pf_scene_t *scene, const pf_accel_t 
         pf_tile_cost_t mine = { 0 };
 #pragma omp for schedule(dynamic, 1)
         for (int i = 0; i < n; i++) {
-            int x0 = (int)(((2 * (int64_t)(i % gx) + lattice) * bx) / (2 * gx)) * S_PROBE_BLOCK;
-            int y0 = (int)(((2 * (int64_t)(i / gx) + lattice) * by) / (2 * gy)) * S_PROBE_BLOCK;
+            int x0 = (int)(((2 * (int64_t)(i % gx) + 1) * bx) / (2 * gx)) * S_PROBE_BLOCK;
+            int y0 = (int)(((2 * (int64_t)(i / gx) + 1) * by) / (2 * gy)) * S_PROBE_BLOCK;
             int w = x0 + S_PROBE_BLOCK <= base->width ? S_PROBE_BLOCK : base->width - x0;
             int h = y0 + S_PROBE_BLOCK <= base->height ? S_PROBE_BLOCK : base->height - y0;
             pf_render_tile_cost(&ctx, x0, y0, w, h, px, &mine);
@@ -140,16 +139,15 @@ static double s_probe(pf_budget_t *b, const pf_scene_t *scene, const pf_accel_t 
     /* A probe block's border of filtered gathers is far larger for its size
      * than a tile's: the recording is costed per sample recorded and scaled
      * to the border the render's tiles carry. */
-    double fill = maps->texels ? pf_irrtex_fill_s(maps->texels) - fill0 : 0.0;
     double r = (double)base->gather_filter, t = (double)(b->tile > 0 ? b->tile : 32);
     double border = cost.record_samples ? (t + 2.0 * r) * (t + 2.0 * r) / (t * t) : 0.0;
     double sample_s = cost.samples ? cost.render_s / (double)cost.samples : 0.0;
     if (cost.record_samples)
         sample_s += border * cost.record_s / (double)cost.record_samples;
-    pf_debug("time limit probe at spp %d: %d blocks, %.3f s wall on %d threads; texel fills %.3f s; recording %.3f s "
-             "for %" PRIu64 " samples, rendering %.3f s for %" PRIu64 " samples: %.2f us per sample",
-             spp, n, pf_now() - wall0, local_threads, fill, cost.record_s, cost.record_samples, cost.render_s,
-             cost.samples, sample_s * 1e6);
+    pf_debug("time limit probe at spp %d: %d blocks, %.3f s wall on %d threads; recording %.3f s for %" PRIu64
+             " samples, rendering %.3f s for %" PRIu64 " samples: %.2f us per sample",
+             spp, n, pf_now() - wall0, local_threads, cost.record_s, cost.record_samples, cost.render_s, cost.samples,
+             sample_s * 1e6);
     return sample_s;
 }
 
@@ -165,21 +163,8 @@ void pf_budget_plan_spp(pf_budget_t *b, const pf_scene_t *scene, const pf_accel_
      * planned, 16.2 s taken, cornell-spheres at 30 s). Two probes, at
      * S_PROBE_LO and S_PROBE_HI, give p and c. */
     enum { S_PROBE_LO = 2, S_PROBE_HI = 8 };
-    /* Irradiance texels fill on first use (irrtex.h), in every process that
-     * renders, far more per sample in an early, sparse probe than in a
-     * render, which pays for its fills once over the whole image: with
-     * probes that filled them, plans left half the limit unused
-     * (cornell-spheres at 120 s: 61 s). So a first probe, untimed, on blocks
-     * of its own (the lattice's corners) fills texels that any pixel's
-     * gather rays meet; the timed probes on the lattice's centres find many
-     * filled; the render's fills are costed apart below. Taking the fills'
-     * measured time out of the probes instead planned closer but once
-     * overran (cornell-box at 120 s took 129 s): a stall of the machine
-     * during a fill counted as a fill, and was taken out too. */
-    if (maps->texels)
-        s_probe(b, scene, accel, lights, maps, terms, local_threads, s, S_PROBE_LO, 0);
-    double e_lo = s_probe(b, scene, accel, lights, maps, terms, local_threads, s, S_PROBE_LO, 1);
-    double e_hi = s_probe(b, scene, accel, lights, maps, terms, local_threads, s, S_PROBE_HI, 1);
+    double e_lo = s_probe(b, scene, accel, lights, maps, terms, local_threads, s, S_PROBE_LO);
+    double e_hi = s_probe(b, scene, accel, lights, maps, terms, local_threads, s, S_PROBE_HI);
     double c = (S_PROBE_HI * e_hi - S_PROBE_LO * e_lo) / (S_PROBE_HI - S_PROBE_LO);
     double p = S_PROBE_LO * (e_lo - c);
     if (!(c > 0.0) || !(p >= 0.0)) {
@@ -194,20 +179,6 @@ void pf_budget_plan_spp(pf_budget_t *b, const pf_scene_t *scene, const pf_accel_
     double left = pf_budget_left(b) - S_RESERVE_S - S_RESERVE_SHARE * b->limit_s;
     double per_spp = (double)npx * c / (double)b->render_threads;
     double fixed = (double)npx * p / (double)b->render_threads;
-    /* The render's texel fills: at most every texel, at the probes' mean
-     * time per fill, in each worker on its own threads (taken as this
-     * machine's). A bound, on top of the fills the timed probes paid for: a
-     * render meets fewer (cornell-spheres at 120 s, 4.3M of 10.3M; closed
-     * rooms never show their walls' backs). */
-    const pf_irrtex_t *tex = maps->texels;
-    size_t fills = tex ? pf_irrtex_filled(tex, NULL) : 0;
-    b->fill_s = fills ? (double)pf_irrtex_count(tex) * pf_irrtex_fill_s(tex) / (double)fills /
-                            (double)(local_threads > 0 ? local_threads : 1)
-                      : 0.0;
-    fixed += b->fill_s;
-    if (tex)
-        pf_debug("time limit: %zu texel fills so far, %.2f us each; the render's planned at %.2f s at most", fills,
-                 fills ? pf_irrtex_fill_s(tex) / (double)fills * 1e6 : 0.0, b->fill_s);
     double spp = per_spp > 0.0 ? floor((S_SAFETY * left - fixed) / per_spp) : 1.0;
     if (!(spp >= 1.0)) {
         pf_warn("time limit: even one sample per pixel needs about %.1f s more than the %.1f s left; "

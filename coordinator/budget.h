@@ -20,11 +20,7 @@
  *      render's tiles will carry them); spp is the number of samples per
  *      pixel that fills the time left (less a reserve for writing the image
  *      and a safety margin) on all the threads that will render: this
- *      process's, or every worker's together. The irradiance texels
- *      (irrtex.h) fill on first use, far more per sample in a probe than in
- *      a render: the fills' time is taken out of the probes' and the
- *      render's fills costed apart (every texel at the probes' mean time
- *      per fill, once per worker).
+ *      process's, or every worker's together.
  * The image is then rendered in one pass with that spp, so it is the same
  * image a render with those settings gives (deterministic given the choices;
  * the choices depend on the machine's speed). */
@@ -60,7 +56,6 @@ typedef struct pf_budget {
     /* Filled in as the plan is made, for the summary. */
     double photon_s_per_photon; /* calibration: seconds per photon */
     double pixel_s, sample_s;   /* thread-seconds a pixel costs: pixel_s + spp * sample_s */
-    double fill_s;              /* seconds the render's irradiance-texel fills add, once per worker */
     double planned_render_s;
 } pf_budget_t;
 
