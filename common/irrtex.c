@@ -1,10 +1,10 @@
 /* irrtex.c: irradiance texels on the scene's surfaces; see irrtex.h. Owns
  * the per-primitive table and the texels. Built by one thread
  * (pf_photon_maps_index); lookups and their fills come from every rendering
- * thread at once. A texel is written by whichever thread first finds it
- * empty, maybe several at once: each stores the same bits (the value is a
- * function of the texel), the channels before the flag that publishes them,
- * so a reader that sees the flag (acquire) sees the channels. */
+ * thread at once. A texel is one 64-bit atomic, written by whichever
+ * thread first finds it empty, maybe several at once: each stores the same
+ * bits (the value is a function of the texel), and a reader sees either
+ * zero (empty: it fills the texel itself) or the whole value. */
 #include "common/irrtex.h"
 
 #include <math.h>
@@ -40,7 +40,8 @@ struct pf_irrtex {
     _Atomic size_t filled, direct; /* fills so far (two threads filling one texel at once count twice) */
 };
 
-/* Texels along a triangle's edge for its longest edge at the given texel side; 0 when more than PF_IRRTEX_MAX_RES. */
+/* Texels along a triangle's edges for its longest edge at the given texel
+ * side; 0 when more than PF_IRRTEX_MAX_RES. */
 static uint32_t s_res(float extent, float side)
 {
     float r = ceilf(extent / side);
