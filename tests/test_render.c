@@ -112,6 +112,14 @@ static void s_photon_setup(const pf_scene_t *scene, const pf_settings_t *s, pf_a
     PF_CHECK(*accel && *lights && pf_photon_pass(scene, *accel, *lights, s, maps, st) == PF_OK);
 }
 
+/* Frees what s_photon_setup made. */
+static void s_photon_free(pf_accel_t **accel, pf_lights_t **lights, pf_photon_maps_t *maps)
+{
+    pf_photon_maps_free(maps);
+    pf_lights_destroy(lights);
+    pf_accel_destroy(accel);
+}
+
 /* Renders a scene's image with the given threads and tile size through the
  * same steps as pf_job_render_local (the maps indexed, with irradiance
  * texels), and returns its photon maps too. */
@@ -214,9 +222,7 @@ static void s_test_flat_points(const char *path)
     CHECK(lookups > 10000, "%s: only %ld lookups within a support", path, lookups);
     CHECK(skipped_hit == 0, "%s: %ld lookups skipped a leak-test ray that hits something", path, skipped_hit);
     CHECK(skipped > lookups / 2, "%s: only %ld of %ld lookups skip the leak-test ray", path, skipped, lookups);
-    pf_photon_maps_free(&maps);
-    pf_lights_destroy(&lights);
-    pf_accel_destroy(&accel);
+    s_photon_free(&accel, &lights, &maps);
     pf_scene_destroy(&scene);
 }
 
@@ -308,8 +314,12 @@ static void s_test_texels(const char *path)
     pf_render_image(&ctx, &direct_img, 2, 16, NULL, NULL);
     PF_CHECK(pf_photon_maps_index(&maps, scene, accel) == PF_OK);
     CHECK(maps.texels != NULL, "%s: no irradiance texels", path);
-    if (!maps.texels)
+    if (!maps.texels) {
+        pf_image_free(&direct_img);
+        s_photon_free(&accel, &lights, &maps);
+        pf_scene_destroy(&scene);
         return;
+    }
     float side = pf_irrtex_side(maps.texels);
     pf_camera_t cam = pf_camera_make(&scene->camera, s.width, s.height);
     pf_rng_t rng = pf_rng_make(13, PF_STREAM_TEST, 0, 0);
@@ -360,9 +370,7 @@ static void s_test_texels(const char *path)
           path, m.relmse, m.lum_ratio);
     pf_image_free(&direct_img);
     pf_image_free(&texel_img);
-    pf_photon_maps_free(&maps);
-    pf_lights_destroy(&lights);
-    pf_accel_destroy(&accel);
+    s_photon_free(&accel, &lights, &maps);
     pf_scene_destroy(&scene);
 }
 
@@ -578,9 +586,7 @@ static void s_test_skips(void)
     CHECK(sum > 0.0, "plane: the image is black");
     pf_image_free(&with);
     pf_image_free(&without);
-    pf_photon_maps_free(&maps);
-    pf_lights_destroy(&lights);
-    pf_accel_destroy(&accel);
+    s_photon_free(&accel, &lights, &maps);
     pf_scene_destroy(&plane);
 
     /* The Cornell box has diffuse-to-diffuse light (no skip) but no mirror or
