@@ -163,17 +163,17 @@ void pf_irrtex_destroy(pf_irrtex_t **self_p)
 }
 
 /* The texel a hit falls in, and with c non-NULL its centre, side normal
- * and reach (the distance from the centre to its farthest corner). SIZE_MAX
- * when the primitive has none (spheres never do). */
+ * and reach (the distance from the centre to its farthest corner).
+ * PF_IRRTEX_NONE when the primitive has none (spheres never do). */
 static size_t s_locate(const pf_irrtex_t *t, const pf_hit_t *h, pf_vec3 nf, pf_vec3 *c, pf_vec3 *n, float *reach)
 {
     const pf_scene_t *sc = t->scene;
     if (h->geom >= sc->nmeshes)
-        return SIZE_MAX;
+        return PF_IRRTEX_NONE;
     const pf_mesh_t *m = &sc->meshes[h->geom];
     s_prim p = t->prims[t->first[h->geom] + h->prim];
     if (!p.res)
-        return SIZE_MAX;
+        return PF_IRRTEX_NONE;
     const uint32_t *v = &m->idx[3 * (size_t)h->prim];
     pf_vec3 p0 = m->pos[v[0]], e1 = pf_sub(m->pos[v[1]], p0), e2 = pf_sub(m->pos[v[2]], p0);
     pf_vec3 ng = pf_cross(e1, e2); /* the winding's side is the front */
@@ -241,25 +241,32 @@ pf_vec3 pf_irrtex_quantize(pf_vec3 e) { return s_unpack(s_pack(e)); }
 int pf_irrtex_centre(const pf_irrtex_t *self, const pf_hit_t *h, pf_vec3 nf, pf_vec3 *c, pf_vec3 *n, int *direct)
 {
     float reach;
-    if (s_locate(self, h, nf, c, n, &reach) == SIZE_MAX)
+    if (s_locate(self, h, nf, c, n, &reach) == PF_IRRTEX_NONE)
         return 0;
     *direct = s_direct(self, *c, *n, reach);
     return 1;
 }
 
-int pf_irrtex_lookup(pf_irrtex_t *self, const pf_hit_t *h, pf_vec3 nf, pf_vec3 *e)
+size_t pf_irrtex_find(const pf_irrtex_t *self, const pf_hit_t *h, pf_vec3 nf)
 {
     size_t i = s_locate(self, h, nf, NULL, NULL, NULL);
-    if (i == SIZE_MAX)
+    if (i != PF_IRRTEX_NONE)
+        __builtin_prefetch((const void *)&self->texels[i]);
+    return i;
+}
+
+int pf_irrtex_read(pf_irrtex_t *self, size_t texel, const pf_hit_t *h, pf_vec3 nf, pf_vec3 *e)
+{
+    if (texel == PF_IRRTEX_NONE)
         return 0;
-    uint64_t b = atomic_load_explicit(&self->texels[i], memory_order_relaxed);
+    uint64_t b = atomic_load_explicit(&self->texels[texel], memory_order_relaxed);
     if (!b) {
         pf_vec3 c, n;
         float reach;
         s_locate(self, h, nf, &c, &n, &reach);
         int direct = s_direct(self, c, n, reach);
         b = direct ? S_FILLED | S_DIRECT : s_pack(pf_irradiance_lookup(self->irr, self->irr_r2, self->accel, c, n));
-        atomic_store_explicit(&self->texels[i], b, memory_order_relaxed);
+        atomic_store_explicit(&self->texels[texel], b, memory_order_relaxed);
         atomic_fetch_add_explicit(&self->filled, 1, memory_order_relaxed);
         if (direct)
             atomic_fetch_add_explicit(&self->direct, 1, memory_order_relaxed);
@@ -268,6 +275,11 @@ int pf_irrtex_lookup(pf_irrtex_t *self, const pf_hit_t *h, pf_vec3 nf, pf_vec3 *
         return 0;
     *e = s_unpack(b);
     return 1;
+}
+
+int pf_irrtex_lookup(pf_irrtex_t *self, const pf_hit_t *h, pf_vec3 nf, pf_vec3 *e)
+{
+    return pf_irrtex_read(self, s_locate(self, h, nf, NULL, NULL, NULL), h, nf, e);
 }
 
 float pf_irrtex_side(const pf_irrtex_t *self) { return self->side; }

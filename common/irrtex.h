@@ -57,6 +57,15 @@ void pf_irrtex_destroy(pf_irrtex_t **self_p); /* NULL-safe; sets *self_p = NULL 
  * Safe from any number of threads. */
 int pf_irrtex_lookup(pf_irrtex_t *self, const pf_hit_t *h, pf_vec3 nf, pf_vec3 *e);
 
+/* pf_irrtex_lookup in two steps, for hiding the texel's trip from memory
+ * (gather rays land anywhere; their texels are seldom in cache): find names
+ * the texel h falls in and asks for its cache line (PF_IRRTEX_NONE when h's
+ * primitive has none); read, some work later, is pf_irrtex_lookup for that
+ * texel, with the same h and nf. */
+#define PF_IRRTEX_NONE SIZE_MAX
+size_t pf_irrtex_find(const pf_irrtex_t *self, const pf_hit_t *h, pf_vec3 nf);
+int pf_irrtex_read(pf_irrtex_t *self, size_t texel, const pf_hit_t *h, pf_vec3 nf, pf_vec3 *e);
+
 /* The centre and side normal of the texel a hit falls in (what its value is
  * looked up at), and whether it sends its hits to the direct lookup; 0 when
  * h's primitive has no texels. */

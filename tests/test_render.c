@@ -374,6 +374,62 @@ static void s_test_texels(const char *path)
     pf_scene_destroy(&scene);
 }
 
+/* The final gather's texel reads put off while the next samples are traced
+ * (render.c, s_defer) against each read made at once: the same image, bit
+ * for bit with one gather ray per sample (every sum has one term), and
+ * within rounding with several (the reads add to their sums in another
+ * order). 36 samples a pixel: the reads are made in runs of 16 and a rest. */
+static void s_test_deferred_reads(const char *path)
+{
+    pf_scene_t *scene = s_load(path);
+    if (!scene)
+        return;
+    pf_settings_t s = scene->settings;
+    s.width = s.height = 48;
+    s.photons = 100000;
+    s.caustic_photons = 50000;
+    s.spp = 36;
+    s.threads = 2;
+    pf_accel_t *accel;
+    pf_lights_t *lights;
+    pf_photon_maps_t maps;
+    pf_photon_stats_t st;
+    s_photon_setup(scene, &s, &accel, &lights, &maps, &st);
+    PF_CHECK(pf_photon_maps_index(&maps, scene, accel) == PF_OK);
+    CHECK(maps.texels != NULL, "%s: no irradiance texels", path);
+    for (int gather = 1; gather <= 4; gather += 3) {
+        s.gather = gather;
+        pf_image_t img[2];
+        for (int once = 0; once < 2; once++) {
+            pf_render_ctx_t ctx;
+            pf_render_ctx_init(&ctx, scene, accel, lights, &maps, &s);
+            ctx.reads_at_once = once;
+            PF_CHECK(pf_image_alloc(&img[once], s.width, s.height) == PF_OK);
+            pf_render_image(&ctx, &img[once], 2, 16, NULL, NULL);
+        }
+        size_t nv = (size_t)s.width * (size_t)s.height * 3, differ = 0;
+        double worst = 0.0;
+        for (size_t i = 0; i < nv; i++) {
+            double a = img[0].rgb[i], b = img[1].rgb[i];
+            differ += memcmp(&img[0].rgb[i], &img[1].rgb[i], sizeof img[0].rgb[i]) != 0;
+            double rel = fabs(a - b) / fmax(fabs(b), 1e-3);
+            worst = rel > worst || rel != rel ? rel : worst;
+        }
+        printf("%s: gather %d, texel reads put off against at once: %zu of %zu values differ, by at most %.2g "
+               "(relative)\n",
+               path, gather, differ, nv, worst);
+        if (gather == 1)
+            CHECK(differ == 0, "%s: putting texel reads off changes %zu values", path, differ);
+        else
+            CHECK(worst <= 1e-5, "%s: gather %d: putting texel reads off changes a value by %.3g", path, gather,
+                  worst);
+        pf_image_free(&img[0]);
+        pf_image_free(&img[1]);
+    }
+    s_photon_free(&accel, &lights, &maps);
+    pf_scene_destroy(&scene);
+}
+
 static void s_test_determinism(void)
 {
     pf_error_t err = { { 0 } };
@@ -664,6 +720,8 @@ int main(int argc, char **argv)
         s_test_texel_index();
         s_test_texels("scenes/cornell-box/scene.json");
         s_test_texels("scenes/cornell-spheres/scene.json");
+        s_test_deferred_reads("scenes/cornell-box/scene.json");
+        s_test_deferred_reads("scenes/cornell-spheres/scene.json");
         s_test_skips();
         s_test_filter();
     }

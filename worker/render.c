@@ -180,45 +180,56 @@ static pf_vec3 s_direct(s_state *st, const pf_hit_t *h, const pf_material_t *m, 
     return pf_scale(sum, 1.0f / (float)n);
 }
 
-/* Irradiance at a gather hit h (face normal nf): its texel's, where the maps
- * have texels for its primitive (irrtex.h: the direct lookup made at the
- * texel's centre), else the direct lookup (pf_irradiance_lookup: the nearest
- * precomputed point with an agreeing normal, within its support, visible). */
-static pf_vec3 s_irradiance(s_state *st, const pf_hit_t *h, pf_vec3 nf)
-{
-    const pf_render_ctx_t *c = st->ctx;
-    const pf_photon_maps_t *pm = c->maps;
-    pf_vec3 e;
-    if (pm->texels && pf_irrtex_lookup(pm->texels, h, nf, &e))
-        return e;
-    return pf_irradiance_lookup(pm->irradiance, pm->irradiance_r2, c->accel, h->p, nf);
-}
+/* Where a gather ray ends: its radiance, or, when its first non-specular
+ * hit reads an irradiance texel, that read still to make (the texel's cache
+ * line asked for; s_gather_end_value makes it): the radiance is then
+ * thr * kd * E / pi, E the texel's irradiance (or the direct lookup's, where
+ * the texel sends its hits there). */
+typedef struct s_gather_end {
+    pf_vec3 value;
+    size_t texel; /* PF_IRRTEX_NONE: value is the radiance */
+    pf_hit_t h;
+    pf_vec3 nf, thr, kd;
+} s_gather_end;
 
-/* Radiance leaving the first non-specular surface a gather ray reaches,
- * towards the ray's origin, from the global map; mirrors and glass on the way
- * are followed (one branch chosen by Fresnel). Emission is not counted. */
-static pf_vec3 s_gather_ray(s_state *st, pf_ray_t ray)
+/* Traces a final-gather ray to its end: mirrors and glass on the way are
+ * followed (one branch chosen by Fresnel); at the first non-specular surface
+ * the radiance it leaves towards the ray's origin, from the global map
+ * (emission not counted). */
+static void s_gather_trace(s_state *st, pf_ray_t ray, s_gather_end *end)
 {
     const pf_render_ctx_t *c = st->ctx;
+    end->value = pf_v3s(0.0f);
+    end->texel = PF_IRRTEX_NONE;
     pf_vec3 thr = pf_v3s(1.0f);
     for (int depth = 0; depth < c->settings.max_depth; depth++) {
         pf_hit_t h;
         if (!pf_accel_intersect(c->accel, &ray, INFINITY, &h))
-            return pf_v3s(0.0f);
+            return;
         const pf_material_t *m = &c->scene->mats[h.mat];
         pf_vec3 wo = pf_neg(ray.d);
         pf_vec3 nf = pf_face_forward(h.ng, wo);
         pf_vec3 ns = pf_dot(h.ng, nf) > 0.0f ? h.ns : pf_neg(h.ns);
         if (m->type == PF_MAT_DIFFUSE) {
             if (!pf_mat_nonspecular(m))
-                return pf_v3s(0.0f);
-            pf_vec3 l;
-            if (pf_mat_glossy(m))
-                l = pf_pm_radiance(c->maps->global, m, h.p, nf, wo, c->settings.global_k, c->maps->global_r2,
-                                   &st->scratch);
-            else
-                l = pf_scale(pf_mul(m->kd, s_irradiance(st, &h, nf)), PF_INV_PI);
-            return pf_mul(thr, l);
+                return;
+            if (pf_mat_glossy(m)) {
+                pf_vec3 l = pf_pm_radiance(c->maps->global, m, h.p, nf, wo, c->settings.global_k,
+                                           c->maps->global_r2, &st->scratch);
+                end->value = pf_mul(thr, l);
+                return;
+            }
+            const pf_photon_maps_t *pm = c->maps;
+            end->texel = pm->texels ? pf_irrtex_find(pm->texels, &h, nf) : PF_IRRTEX_NONE;
+            end->h = h;
+            end->nf = nf;
+            end->thr = thr;
+            end->kd = m->kd;
+            if (end->texel == PF_IRRTEX_NONE) {
+                pf_vec3 e = pf_irradiance_lookup(pm->irradiance, pm->irradiance_r2, c->accel, h.p, nf);
+                end->value = pf_mul(thr, pf_scale(pf_mul(m->kd, e), PF_INV_PI));
+            }
+            return;
         }
         pf_vec3 wi;
         if (m->type == PF_MAT_MIRROR) {
@@ -237,30 +248,90 @@ static pf_vec3 s_gather_ray(s_state *st, pf_ray_t ray)
                 thr = pf_mul(thr, pf_scale(m->kt, s * s));
             }
         }
-        if (pf_is_black(thr))
-            return thr;
+        if (pf_is_black(thr)) {
+            end->value = thr;
+            return;
+        }
         ray = pf_spawn_ray(&h, wi);
     }
-    return pf_v3s(0.0f);
 }
 
-/* The final gather at a diffuse hit: the mean radiance mean(L_i) of n
- * cosine-distributed gather rays; the reflected radiance is kd times it
- * (f cos / pdf = kd). */
+/* A gather ray's radiance, reading its texel if it waits on one (the
+ * texel's answer, or the direct lookup where the texel sends it there). */
+static pf_vec3 s_gather_end_value(const s_state *st, const s_gather_end *end)
+{
+    if (end->texel == PF_IRRTEX_NONE)
+        return end->value;
+    const pf_photon_maps_t *pm = st->ctx->maps;
+    pf_vec3 e;
+    if (!pf_irrtex_read(pm->texels, end->texel, &end->h, end->nf, &e))
+        e = pf_irradiance_lookup(pm->irradiance, pm->irradiance_r2, st->ctx->accel, end->h.p, end->nf);
+    return pf_mul(end->thr, pf_scale(pf_mul(end->kd, e), PF_INV_PI));
+}
+
+/* Gather reads put off (s_gather_sum): a few texel reads, each with the
+ * sum it adds to, made together once the traces around them are done. */
+enum { S_DEFER_MAX = 16 };
+typedef struct s_defer {
+    int n;
+    s_gather_end end[S_DEFER_MAX];
+    pf_vec3 *sum[S_DEFER_MAX];
+} s_defer;
+
+/* Adds a gather ray's radiance to *sum; with d, when the ray waits on a
+ * texel read, the read is left in d (while there is room) to be added later
+ * by s_defer_flush. */
+static void s_gather_add(s_state *st, pf_ray_t ray, s_defer *d, pf_vec3 *sum)
+{
+    int defer = d && d->n < S_DEFER_MAX && !st->ctx->reads_at_once;
+    s_gather_end now, *end = defer ? &d->end[d->n] : &now;
+    s_gather_trace(st, ray, end);
+    if (defer && end->texel != PF_IRRTEX_NONE)
+        d->sum[d->n++] = sum;
+    else
+        *sum = pf_add(*sum, s_gather_end_value(st, end));
+}
+
+/* Makes the reads put off, each adding to its sum, in the order they came. */
+static void s_defer_flush(const s_state *st, s_defer *d)
+{
+    for (int i = 0; i < d->n; i++)
+        *d->sum[i] = pf_add(*d->sum[i], s_gather_end_value(st, &d->end[i]));
+    d->n = 0;
+}
+
+/* The final gather at a diffuse hit: adds to *sum the radiances of n
+ * cosine-distributed gather rays (their mean times kd is the reflected
+ * radiance: f cos / pdf = kd), each as s_gather_add. */
+static void s_gather_sum(s_state *st, const pf_hit_t *h, pf_vec3 nf, pf_vec3 ns, int n, s_defer *d, pf_vec3 *sum)
+{
+    for (int i = 0; i < n; i++) {
+        pf_vec3 wi = pf_to_world(pf_sample_cosine(s_u(st), s_u(st)), ns);
+        if (pf_dot(wi, nf) > 0.0f)
+            s_gather_add(st, pf_spawn_ray(h, wi), d, sum);
+    }
+}
+
 static pf_vec3 s_gather_mean(s_state *st, const pf_hit_t *h, pf_vec3 nf, pf_vec3 ns, int n)
 {
     pf_vec3 sum = pf_v3s(0.0f);
-    for (int i = 0; i < n; i++) {
-        pf_vec3 wi = pf_to_world(pf_sample_cosine(s_u(st), s_u(st)), ns);
-        if (pf_dot(wi, nf) <= 0.0f)
-            continue;
-        sum = pf_add(sum, s_gather_ray(st, pf_spawn_ray(h, wi)));
-    }
+    s_gather_sum(st, h, nf, ns, n, NULL, &sum);
     return pf_scale(sum, 1.0f / (float)n);
 }
 
 /* The first gather of a camera sample (depth 0), from its own random stream
- * so that any tile can compute it for any pixel (pf_render_tile's records). */
+ * so that any tile can compute it for any pixel (pf_render_tile's records):
+ * its rays' radiances added to *sum, as s_gather_sum (d included). */
+static void s_first_gather_sum(s_state *st, const pf_hit_t *h, pf_vec3 nf, pf_vec3 ns, s_defer *d, pf_vec3 *sum)
+{
+    pf_rng_t pixel_rng = st->rng;
+    st->rng = pf_rng_make(st->ctx->settings.seed, PF_STREAM_GATHER, st->pixel, st->sample);
+    s_gather_sum(st, h, nf, ns, st->ctx->settings.gather, d, sum);
+    st->rng = pixel_rng;
+}
+
+/* The first gather of a camera sample as the render pass takes it: the
+ * filtered gather of the pixel's surface it lies on, else its own. */
 static pf_vec3 s_first_gather(s_state *st, const pf_hit_t *h, pf_vec3 nf, pf_vec3 ns)
 {
     /* The surfaces are tried in the order they were found, as the records
@@ -269,11 +340,9 @@ static pf_vec3 s_first_gather(s_state *st, const pf_hit_t *h, pf_vec3 nf, pf_vec
     for (int k = 0; st->rec && k < st->rec->nc; k++)
         if (s_same_surface(&st->rec->c[k], h->p, nf, S_FILTER_REACH))
             return st->gf[k];
-    pf_rng_t pixel_rng = st->rng;
-    st->rng = pf_rng_make(st->ctx->settings.seed, PF_STREAM_GATHER, st->pixel, st->sample);
-    pf_vec3 g = s_gather_mean(st, h, nf, ns, st->ctx->settings.gather);
-    st->rng = pixel_rng;
-    return g;
+    pf_vec3 sum = pf_v3s(0.0f);
+    s_first_gather_sum(st, h, nf, ns, NULL, &sum);
+    return pf_scale(sum, 1.0f / (float)st->ctx->settings.gather);
 }
 
 /* Glass paths of the camera split into both branches above this depth. */
@@ -386,7 +455,7 @@ static pf_vec3 s_radiance(s_state *st, pf_ray_t ray, int depth, pf_vec3 thr, int
     return pf_add(L, pf_mul(kt, s_radiance(st, pf_spawn_ray(&h, wt), depth + 1, pf_mul(thr, kt), 1, 0)));
 }
 
-pf_vec3 pf_render_gather_ray(const pf_render_ctx_t *ctx, pf_ray_t ray, uint64_t sample)
+pf_vec3 pf_render_gather_rays(const pf_render_ctx_t *ctx, const pf_ray_t *rays, size_t n, uint64_t sample)
 {
     s_state st;
     st.ctx = ctx;
@@ -395,7 +464,16 @@ pf_vec3 pf_render_gather_ray(const pf_render_ctx_t *ctx, pf_ray_t ray, uint64_t 
     st.caustic_hint = INFINITY;
     st.filtering = 0;
     st.rec = NULL;
-    return s_gather_ray(&st, ray);
+    s_defer d;
+    d.n = 0;
+    pf_vec3 sum = pf_v3s(0.0f);
+    for (size_t i = 0; i < n; i++) {
+        if (d.n == S_DEFER_MAX)
+            s_defer_flush(&st, &d);
+        s_gather_add(&st, rays[i], &d, &sum);
+    }
+    s_defer_flush(&st, &d);
+    return sum;
 }
 
 void pf_render_ctx_init(pf_render_ctx_t *ctx, const pf_scene_t *scene, const pf_accel_t *accel,
@@ -525,12 +603,33 @@ static float s_footprint(const pf_render_ctx_t *c, float fx, float fy, pf_vec3 p
     return fminf(foot, S_FOOT_MAX * base);
 }
 
+/* Makes the texel reads d holds and adds the nb samples' gathers (sums) to
+ * their surfaces' (owner) in rec. Returns 0, the samples left. */
+static int s_record_flush(const s_state *st, s_defer *d, const pf_vec3 *sums, const int *owner, int nb,
+                          s_pixel_rec *rec)
+{
+    s_defer_flush(st, d);
+    for (int i = 0; i < nb; i++) {
+        s_cluster *cl = &rec->c[owner[i]];
+        cl->gsum = pf_add(cl->gsum, pf_scale(sums[i], 1.0f / (float)st->ctx->settings.gather));
+        cl->count++;
+    }
+    return 0;
+}
+
 /* The first-gather records of pixel (px, py): its samples' surfaces and
- * the sums of their gathers. */
+ * the sums of their gathers. The gathers' texel reads wait while the next
+ * samples are traced (s_defer; up to S_DEFER_MAX samples at a time), so
+ * their trips from memory overlap the traces; each sample's gather still
+ * reaches its surface's sum in sample order. */
 static void s_record_pixel(s_state *st, const s_pattern *pt, int px, int py, s_pixel_rec *rec)
 {
     const pf_render_ctx_t *c = st->ctx;
     rec->nc = 0;
+    s_defer d;
+    d.n = 0;
+    pf_vec3 sums[S_DEFER_MAX];
+    int owner[S_DEFER_MAX], nb = 0;
     for (int s = 0; s < pt->spp; s++) {
         float fx, fy;
         pf_ray_t ray = s_camera_sample(st, pt, px, py, s, &fx, &fy);
@@ -546,11 +645,13 @@ static void s_record_pixel(s_state *st, const s_pattern *pt, int px, int py, s_p
             continue; /* gathers for itself in the render pass */
         if (k == rec->nc)
             rec->c[rec->nc++] = (s_cluster){ h.p, nf, pf_v3s(0.0f), s_footprint(c, fx, fy, h.p, nf, length), 0 };
-        st->rec = NULL;
-        pf_vec3 g = s_first_gather(st, &h, nf, ns);
-        rec->c[k].gsum = pf_add(rec->c[k].gsum, g);
-        rec->c[k].count++;
+        sums[nb] = pf_v3s(0.0f);
+        owner[nb] = k;
+        s_first_gather_sum(st, &h, nf, ns, &d, &sums[nb++]);
+        if (nb == S_DEFER_MAX || c->reads_at_once)
+            nb = s_record_flush(st, &d, sums, owner, nb, rec);
     }
+    s_record_flush(st, &d, sums, owner, nb, rec);
 }
 
 /* A tile in the making: its first-gather records (none when not filtering). */

@@ -35,12 +35,19 @@ typedef struct pf_render_ctx {
      * their pixel (never reach the image) and counted here, atomically;
      * NULL: not counted. pf_render_ctx_init leaves it NULL. */
     uint64_t *dropped;
+    /* Each gather ray's irradiance texel read made as the ray ends, not put
+     * off while the next rays are traced (render.c, s_defer): the same
+     * image (bit for bit with one gather ray per sample), slower. For tests
+     * and benchmarks; pf_render_ctx_init leaves it 0. */
+    int reads_at_once;
 } pf_render_ctx_t;
 
-/* One final-gather ray exactly as the integrator traces it (mirrors and glass
- * followed, the global map's radiance at the first non-specular hit), with
- * the random stream of the given sample index. For benchmarks and tests. */
-pf_vec3 pf_render_gather_ray(const pf_render_ctx_t *ctx, pf_ray_t ray, uint64_t sample);
+/* The sum of final-gather rays' radiances, each exactly as the integrator
+ * traces it (mirrors and glass followed, the global map's radiance at the
+ * first non-specular hit), in one random stream (of the given sample index),
+ * their texel reads put off a few rays as the first-gather records do
+ * (unless ctx->reads_at_once). For benchmarks. */
+pf_vec3 pf_render_gather_rays(const pf_render_ctx_t *ctx, const pf_ray_t *rays, size_t n, uint64_t sample);
 
 /* Fills ctx for a full render of the scene at settings' size. */
 void pf_render_ctx_init(pf_render_ctx_t *ctx, const pf_scene_t *scene, const pf_accel_t *accel,
