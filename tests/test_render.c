@@ -120,6 +120,39 @@ static void s_photon_free(pf_accel_t **accel, pf_lights_t **lights, pf_photon_ma
     pf_accel_destroy(accel);
 }
 
+/* A scene loaded for a test, with its ray-tracing structure, lights and
+ * photon maps as a render makes them (s_photon_setup), at its own settings
+ * made small: size x size pixels, the given photon counts, 2 threads. */
+typedef struct s_fixture {
+    pf_scene_t *scene;
+    pf_settings_t s;
+    pf_accel_t *accel;
+    pf_lights_t *lights;
+    pf_photon_maps_t maps;
+    pf_photon_stats_t st;
+} s_fixture;
+
+/* 0 (the failure counted) when the scene cannot be loaded. */
+static int s_fixture_open(s_fixture *f, const char *path, int size, uint64_t photons, uint64_t caustic_photons)
+{
+    f->scene = s_load(path);
+    if (!f->scene)
+        return 0;
+    f->s = f->scene->settings;
+    f->s.width = f->s.height = size;
+    f->s.photons = photons;
+    f->s.caustic_photons = caustic_photons;
+    f->s.threads = 2;
+    s_photon_setup(f->scene, &f->s, &f->accel, &f->lights, &f->maps, &f->st);
+    return 1;
+}
+
+static void s_fixture_close(s_fixture *f)
+{
+    s_photon_free(&f->accel, &f->lights, &f->maps);
+    pf_scene_destroy(&f->scene);
+}
+
 /* Renders a scene's image with the given threads and tile size through the
  * same steps as pf_job_render_local (the maps indexed, with irradiance
  * texels), and returns its photon maps too. */
@@ -179,30 +212,21 @@ static int s_gather_hit(const pf_scene_t *scene, const pf_accel_t *accel, const 
  * image), and most must be skipped on the Cornell scenes' open walls. */
 static void s_test_flat_points(const char *path)
 {
-    pf_scene_t *scene = s_load(path);
-    if (!scene)
+    s_fixture f;
+    if (!s_fixture_open(&f, path, 64, 200000, 100000))
         return;
-    pf_settings_t s = scene->settings;
-    s.width = s.height = 64;
-    s.photons = 200000;
-    s.threads = 2;
-    pf_accel_t *accel;
-    pf_lights_t *lights;
-    pf_photon_maps_t maps;
-    pf_photon_stats_t st;
-    s_photon_setup(scene, &s, &accel, &lights, &maps, &st);
-    pf_camera_t cam = pf_camera_make(&scene->camera, s.width, s.height);
+    pf_camera_t cam = pf_camera_make(&f.scene->camera, f.s.width, f.s.height);
     pf_rng_t rng = pf_rng_make(11, PF_STREAM_TEST, 0, 0);
-    const pf_kdtree_t *irr = maps.irradiance;
-    float eps = pf_accel_eps(accel);
+    const pf_kdtree_t *irr = f.maps.irradiance;
+    float eps = pf_accel_eps(f.accel);
     long lookups = 0, skipped = 0, skipped_hit = 0, traced = 0, traced_hit = 0;
     for (int i = 0; i < 40000; i++) {
         pf_hit_t h;
         pf_vec3 nf;
-        if (!s_gather_hit(scene, accel, &cam, s.width, s.height, &rng, &h, &nf))
+        if (!s_gather_hit(f.scene, f.accel, &cam, f.s.width, f.s.height, &rng, &h, &nf))
             continue;
         pf_knn_t nn;
-        if (!pf_kdtree_nearest_normal(irr, h.p, nf, PF_NORMAL_AGREE, maps.irradiance_r2, &nn))
+        if (!pf_kdtree_nearest_normal(irr, h.p, nf, PF_NORMAL_AGREE, f.maps.irradiance_r2, &nn))
             continue;
         const pf_photon_t *q = &pf_kdtree_photons(irr)[nn.index];
         float d = sqrtf(nn.d2), len;
@@ -211,7 +235,7 @@ static void s_test_flat_points(const char *path)
             !pf_irradiance_leak_ray(h.p, nf, q, d, &leak, &len))
             continue;
         lookups++;
-        int hit = pf_accel_occluded(accel, &leak, len);
+        int hit = pf_accel_occluded(f.accel, &leak, len);
         if (pf_irradiance_leak_test(q, d, eps))
             traced++, traced_hit += hit;
         else
@@ -222,8 +246,7 @@ static void s_test_flat_points(const char *path)
     CHECK(lookups > 10000, "%s: only %ld lookups within a support", path, lookups);
     CHECK(skipped_hit == 0, "%s: %ld lookups skipped a leak-test ray that hits something", path, skipped_hit);
     CHECK(skipped > lookups / 2, "%s: only %ld of %ld lookups skip the leak-test ray", path, skipped, lookups);
-    s_photon_free(&accel, &lights, &maps);
-    pf_scene_destroy(&scene);
+    s_fixture_close(&f);
 }
 
 /* A triangle's texels (pf_irrtex_tri_texel): R^2 distinct indices, each
@@ -292,62 +315,51 @@ static void s_test_texel_index(void)
  * much less than the renders' noise (relMSE against each other). */
 static void s_test_texels(const char *path)
 {
-    pf_scene_t *scene = s_load(path);
-    if (!scene)
+    s_fixture f;
+    if (!s_fixture_open(&f, path, 64, 200000, 100000))
         return;
-    pf_settings_t s = scene->settings;
-    s.width = s.height = 64;
-    s.photons = 200000;
-    s.caustic_photons = 100000;
-    s.spp = 4;
-    s.gather = 16;
-    s.threads = 2;
-    pf_accel_t *accel;
-    pf_lights_t *lights;
-    pf_photon_maps_t maps;
-    pf_photon_stats_t st;
-    s_photon_setup(scene, &s, &accel, &lights, &maps, &st);
+    f.s.spp = 4;
+    f.s.gather = 16;
     pf_image_t direct_img, texel_img;
     pf_render_ctx_t ctx;
-    pf_render_ctx_init(&ctx, scene, accel, lights, &maps, &s);
-    PF_CHECK(pf_image_alloc(&direct_img, s.width, s.height) == PF_OK);
+    pf_render_ctx_init(&ctx, f.scene, f.accel, f.lights, &f.maps, &f.s);
+    PF_CHECK(pf_image_alloc(&direct_img, f.s.width, f.s.height) == PF_OK);
     pf_render_image(&ctx, &direct_img, 2, 16, NULL, NULL);
-    PF_CHECK(pf_photon_maps_index(&maps, scene, accel) == PF_OK);
-    CHECK(maps.texels != NULL, "%s: no irradiance texels", path);
-    if (!maps.texels) {
+    PF_CHECK(pf_photon_maps_index(&f.maps, f.scene, f.accel) == PF_OK);
+    CHECK(f.maps.texels != NULL, "%s: no irradiance texels", path);
+    if (!f.maps.texels) {
         pf_image_free(&direct_img);
-        s_photon_free(&accel, &lights, &maps);
-        pf_scene_destroy(&scene);
+        s_fixture_close(&f);
         return;
     }
-    float side = pf_irrtex_side(maps.texels);
-    pf_camera_t cam = pf_camera_make(&scene->camera, s.width, s.height);
+    float side = pf_irrtex_side(f.maps.texels);
+    pf_camera_t cam = pf_camera_make(&f.scene->camera, f.s.width, f.s.height);
     pf_rng_t rng = pf_rng_make(13, PF_STREAM_TEST, 0, 0);
     long hits = 0, answered = 0, far = 0, wrong = 0, direct_ok = 0;
     for (int i = 0; i < 40000; i++) {
         pf_hit_t h;
         pf_vec3 nf;
-        if (!s_gather_hit(scene, accel, &cam, s.width, s.height, &rng, &h, &nf) || h.geom >= scene->nmeshes)
+        if (!s_gather_hit(f.scene, f.accel, &cam, f.s.width, f.s.height, &rng, &h, &nf) || h.geom >= f.scene->nmeshes)
             continue;
         hits++;
         pf_vec3 c, n, e;
         int direct;
-        if (!pf_irrtex_centre(maps.texels, &h, nf, &c, &n, &direct)) {
+        if (!pf_irrtex_centre(f.maps.texels, &h, nf, &c, &n, &direct)) {
             wrong++;
             continue;
         }
         pf_vec3 pc = pf_sub(c, h.p);
-        far += !(pf_len(pc) <= 2.0f / 3.0f * side * 1.001f + 4.0f * pf_accel_eps(accel)) ||
+        far += !(pf_len(pc) <= 2.0f / 3.0f * side * 1.001f + 4.0f * pf_accel_eps(f.accel)) ||
                !(fabsf(pf_dot(pc, n)) <= 1e-3f * side) || !(pf_dot(n, nf) > 0.999f);
-        int got = pf_irrtex_lookup(maps.texels, &h, nf, &e);
+        int got = pf_irrtex_lookup(f.maps.texels, &h, nf, &e);
         if (direct) {
             wrong += got;
             /* sent to the direct lookup: another surface within reach */
-            direct_ok += !pf_accel_only_plane(accel, c, n, side);
+            direct_ok += !pf_accel_only_plane(f.accel, c, n, side);
             continue;
         }
         answered++;
-        pf_vec3 want = pf_irrtex_quantize(pf_irradiance_lookup(maps.irradiance, maps.irradiance_r2, accel, c, n));
+        pf_vec3 want = pf_irrtex_quantize(pf_irradiance_lookup(f.maps.irradiance, f.maps.irradiance_r2, f.accel, c, n));
         wrong += !got || memcmp(&e, &want, sizeof e) != 0;
     }
     printf("%s: %ld gather hits on triangles, %.1f %% answered by a texel (side %g), %ld centres off the texel, "
@@ -359,7 +371,7 @@ static void s_test_texels(const char *path)
     CHECK(direct_ok == hits - answered, "%s: %ld of %ld direct texels have nothing near", path,
           hits - answered - direct_ok, hits - answered);
     CHECK(answered > hits * 3 / 4, "%s: only %ld of %ld gather hits answered by a texel", path, answered, hits);
-    PF_CHECK(pf_image_alloc(&texel_img, s.width, s.height) == PF_OK);
+    PF_CHECK(pf_image_alloc(&texel_img, f.s.width, f.s.height) == PF_OK);
     pf_render_image(&ctx, &texel_img, 2, 16, NULL, NULL);
     pf_metrics_t m;
     pf_error_t err;
@@ -370,8 +382,7 @@ static void s_test_texels(const char *path)
           path, m.relmse, m.lum_ratio);
     pf_image_free(&direct_img);
     pf_image_free(&texel_img);
-    s_photon_free(&accel, &lights, &maps);
-    pf_scene_destroy(&scene);
+    s_fixture_close(&f);
 }
 
 /* The final gather's texel reads put off while the next samples are traced
@@ -381,33 +392,23 @@ static void s_test_texels(const char *path)
  * order). 36 samples a pixel: the reads are made in runs of 16 and a rest. */
 static void s_test_deferred_reads(const char *path)
 {
-    pf_scene_t *scene = s_load(path);
-    if (!scene)
+    s_fixture f;
+    if (!s_fixture_open(&f, path, 48, 100000, 50000))
         return;
-    pf_settings_t s = scene->settings;
-    s.width = s.height = 48;
-    s.photons = 100000;
-    s.caustic_photons = 50000;
-    s.spp = 36;
-    s.threads = 2;
-    pf_accel_t *accel;
-    pf_lights_t *lights;
-    pf_photon_maps_t maps;
-    pf_photon_stats_t st;
-    s_photon_setup(scene, &s, &accel, &lights, &maps, &st);
-    PF_CHECK(pf_photon_maps_index(&maps, scene, accel) == PF_OK);
-    CHECK(maps.texels != NULL, "%s: no irradiance texels", path);
+    f.s.spp = 36;
+    PF_CHECK(pf_photon_maps_index(&f.maps, f.scene, f.accel) == PF_OK);
+    CHECK(f.maps.texels != NULL, "%s: no irradiance texels", path);
     for (int gather = 1; gather <= 4; gather += 3) {
-        s.gather = gather;
+        f.s.gather = gather;
         pf_image_t img[2];
         for (int once = 0; once < 2; once++) {
             pf_render_ctx_t ctx;
-            pf_render_ctx_init(&ctx, scene, accel, lights, &maps, &s);
+            pf_render_ctx_init(&ctx, f.scene, f.accel, f.lights, &f.maps, &f.s);
             ctx.reads_at_once = once;
-            PF_CHECK(pf_image_alloc(&img[once], s.width, s.height) == PF_OK);
+            PF_CHECK(pf_image_alloc(&img[once], f.s.width, f.s.height) == PF_OK);
             pf_render_image(&ctx, &img[once], 2, 16, NULL, NULL);
         }
-        size_t nv = (size_t)s.width * (size_t)s.height * 3, differ = 0;
+        size_t nv = (size_t)f.s.width * (size_t)f.s.height * 3, differ = 0;
         double worst = 0.0;
         for (size_t i = 0; i < nv; i++) {
             double a = img[0].rgb[i], b = img[1].rgb[i];
@@ -426,8 +427,7 @@ static void s_test_deferred_reads(const char *path)
         pf_image_free(&img[0]);
         pf_image_free(&img[1]);
     }
-    s_photon_free(&accel, &lights, &maps);
-    pf_scene_destroy(&scene);
+    s_fixture_close(&f);
 }
 
 static void s_test_determinism(void)
