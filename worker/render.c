@@ -180,14 +180,15 @@ static pf_vec3 s_direct(s_state *st, const pf_hit_t *h, const pf_material_t *m, 
     return pf_scale(sum, 1.0f / (float)n);
 }
 
-/* Where a gather ray ends: its radiance, or, when its first non-specular
- * hit reads an irradiance texel, that read still to make (the texel's cache
- * line asked for; s_gather_end_value makes it): the radiance is then
- * thr * kd * E / pi, E the texel's irradiance (or the direct lookup's, where
- * the texel sends its hits there). */
+/* Where a gather ray ends: its radiance, or, at a diffuse surface read
+ * through the irradiance lookup, that lookup still to make (its texel's
+ * cache line asked for where it has one; s_gather_end_value makes it): the
+ * radiance is then thr * kd * E / pi, E the texel's irradiance (or the
+ * direct lookup's, without a texel or where the texel sends its hits there). */
 typedef struct s_gather_end {
-    pf_vec3 value;
-    size_t texel; /* PF_IRRTEX_NONE: value is the radiance */
+    pf_vec3 value; /* unless lookup */
+    int lookup;    /* the radiance is thr * kd * E / pi, E looked up at h */
+    size_t texel;  /* h's texel, or PF_IRRTEX_NONE: the direct lookup */
     pf_hit_t h;
     pf_vec3 nf, thr, kd;
 } s_gather_end;
@@ -200,6 +201,7 @@ static void s_gather_trace(s_state *st, pf_ray_t ray, s_gather_end *end)
 {
     const pf_render_ctx_t *c = st->ctx;
     end->value = pf_v3s(0.0f);
+    end->lookup = 0;
     end->texel = PF_IRRTEX_NONE;
     pf_vec3 thr = pf_v3s(1.0f);
     for (int depth = 0; depth < c->settings.max_depth; depth++) {
@@ -221,14 +223,11 @@ static void s_gather_trace(s_state *st, pf_ray_t ray, s_gather_end *end)
             }
             const pf_photon_maps_t *pm = c->maps;
             end->texel = pm->texels ? pf_irrtex_find(pm->texels, &h, nf) : PF_IRRTEX_NONE;
+            end->lookup = 1;
             end->h = h;
             end->nf = nf;
             end->thr = thr;
             end->kd = m->kd;
-            if (end->texel == PF_IRRTEX_NONE) {
-                pf_vec3 e = pf_irradiance_lookup(pm->irradiance, pm->irradiance_r2, c->accel, h.p, nf);
-                end->value = pf_mul(thr, pf_scale(pf_mul(m->kd, e), PF_INV_PI));
-            }
             return;
         }
         pf_vec3 wi;
@@ -256,15 +255,16 @@ static void s_gather_trace(s_state *st, pf_ray_t ray, s_gather_end *end)
     }
 }
 
-/* A gather ray's radiance, reading its texel if it waits on one (the
- * texel's answer, or the direct lookup where the texel sends it there). */
+/* A gather ray's radiance, making its irradiance lookup if it waits on one
+ * (the texel's answer, or the direct lookup without a texel or where the
+ * texel sends it there). */
 static pf_vec3 s_gather_end_value(const s_state *st, const s_gather_end *end)
 {
-    if (end->texel == PF_IRRTEX_NONE)
+    if (!end->lookup)
         return end->value;
     const pf_photon_maps_t *pm = st->ctx->maps;
     pf_vec3 e;
-    if (!pf_irrtex_read(pm->texels, end->texel, &end->h, end->nf, &e))
+    if (end->texel == PF_IRRTEX_NONE || !pf_irrtex_read(pm->texels, end->texel, &end->h, end->nf, &e))
         e = pf_irradiance_lookup(pm->irradiance, pm->irradiance_r2, st->ctx->accel, end->h.p, end->nf);
     return pf_mul(end->thr, pf_scale(pf_mul(end->kd, e), PF_INV_PI));
 }
