@@ -297,20 +297,30 @@ static void s_build(s_item_t *a, size_t lo, size_t hi)
     }
 }
 
-/* Moves photon perm[i] to slot i for all i. A gather into a new array issues independent loads (on all threads
- * when parallel), an order of magnitude faster than following the
- * permutation's cycles in place, whose loads depend on each other; the
- * in-place way is the fallback when memory for the copy is short. Returns the
- * array now holding the photons (ph itself, or the copy with ph freed). */
-static pf_photon_t *s_permute(pf_photon_t *ph, uint32_t *perm, size_t n, int parallel)
+/* Moves photon perm[i] to slot i for all i, giving it split axis axes[i]
+ * (when axes is not NULL; else the photons carry theirs already). A gather
+ * into a new array issues independent loads (on all threads when parallel)
+ * and writes each photon once, in order, an order of magnitude faster than
+ * following the permutation's cycles in place, whose loads depend on each
+ * other; the in-place way is the fallback when memory for the copy is short.
+ * Returns the array now holding the photons (ph itself, or the copy with ph
+ * freed). */
+static pf_photon_t *s_permute(pf_photon_t *ph, uint32_t *perm, const uint8_t *axes, size_t n, int parallel)
 {
     pf_photon_t *out = malloc((n ? n : 1) * sizeof *out);
     if (out) {
-#pragma omp parallel for if (parallel) schedule(static) default(none) shared(out, ph, perm, n)
-        for (size_t i = 0; i < n; i++)
+#pragma omp parallel for if (parallel) schedule(static) default(none) shared(out, ph, perm, axes, n)
+        for (size_t i = 0; i < n; i++) {
             out[i] = ph[perm[i]];
+            if (axes)
+                pf_photon_set_axis(&out[i], axes[i]);
+        }
         free(ph);
         return out;
+    }
+    if (axes) {
+        for (size_t i = 0; i < n; i++)
+            pf_photon_set_axis(&ph[perm[i]], axes[i]);
     }
     /* Bit 31 of perm[j] (free, as n < 2^31) marks slot j as done. */
     const uint32_t done = 0x80000000u;
@@ -410,20 +420,25 @@ pf_kdtree_t *pf_kdtree_build(pf_photon_t **photons_p, size_t n)
     } else {
         s_build(items, 0, n);
     }
-    /* Each photon takes its node's split axis where it is, and then only the
-     * permutation (4 of the 16 bytes per photon) is kept, so that less is
-     * held during the permutation: in an array of its own, or when that
-     * memory is short packed at the front of the items' memory, one thread
-     * (slot i is written after items[i] was read). */
+    /* Only the permutation and the split axes (5 of the 16 bytes per
+     * photon) are kept, so that less is held during the permutation, and the
+     * photons take their axes as they move: in arrays of their own, or when
+     * that memory is short the permutation packed at the front of the items'
+     * memory, one thread (slot i is written after items[i] was read), the
+     * photons taking their axes where they are. */
     uint32_t *perm = malloc((n ? n : 1) * sizeof *perm);
-    if (perm) {
-#pragma omp parallel for if (parallel) schedule(static) default(none) shared(items, perm, ph, n)
+    uint8_t *axes = malloc(n ? n : 1);
+    if (perm && axes) {
+#pragma omp parallel for if (parallel) schedule(static) default(none) shared(items, perm, axes, n)
         for (size_t i = 0; i < n; i++) {
             perm[i] = items[i].idx;
-            pf_photon_set_axis(&ph[items[i].idx], items[i].k[0]);
+            axes[i] = (uint8_t)items[i].k[0];
         }
         free(items);
     } else {
+        free(perm);
+        free(axes);
+        axes = NULL;
         perm = (uint32_t *)items;
         for (size_t i = 0; i < n; i++) {
             uint32_t idx = items[i].idx;
@@ -434,8 +449,9 @@ pf_kdtree_t *pf_kdtree_build(pf_photon_t **photons_p, size_t n)
         perm = smaller ? smaller : perm;
     }
     items = NULL;
-    ph = s_permute(ph, perm, n, parallel);
+    ph = s_permute(ph, perm, axes, n, parallel);
     free(perm);
+    free(axes);
     pf_kdtree_t *self = s_make(ph, n);
     if (!self)
         goto fail;

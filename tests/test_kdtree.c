@@ -632,7 +632,19 @@ static void s_test_from_layout(void)
  * test with a budget of one pass (so every large range is partly partitioned,
  * then heapsorted) and its public functions renamed. Since the layout is a
  * function of the input alone, its trees must be byte-identical to the
- * library's. */
+ * library's.
+ *
+ * The same copy runs the build's ways for short memory: its malloc fails the
+ * calls numbered in s_malloc_fail (bit i: the i-th call since s_malloc_calls
+ * was reset; the build's are items, permutation, axes, the photons' new
+ * array, the tree), and those trees must be byte-identical too. */
+static unsigned s_malloc_calls, s_malloc_fail;
+static void *s_fallback_malloc(size_t size)
+{
+    unsigned call = s_malloc_calls++;
+    return call < 32 && (s_malloc_fail >> call & 1u) ? NULL : malloc(size);
+}
+#define malloc s_fallback_malloc
 #define PF_KDTREE_SELECT_BUDGET 1
 #define pf_kdtree_build s_fallback_build
 #define pf_kdtree_from_layout s_fallback_from_layout
@@ -657,17 +669,28 @@ static void s_test_from_layout(void)
 #undef pf_kdtree_knn_heap
 #undef pf_kdtree_radius
 #undef pf_kdtree_radius_upto
+#undef malloc
 
 static void s_test_fallback(int kind, size_t n)
 {
     pf_photon_t *input = s_make_set(kind, n);
     pf_kdtree_t *t = s_build_copy(input, n);
-    pf_photon_t *ph = s_copy(input, n * sizeof *input);
-    pf_kdtree_t *f = s_fallback_build(&ph, n);
-    CHECK(t && f && memcmp(pf_kdtree_photons(t), s_fallback_photons(f), n * sizeof(pf_photon_t)) == 0,
-          "%s n=%zu: heapsort fallback builds another layout", s_set_names[kind], n);
+    /* Nothing failed; then no array for the permutation, or none for the
+     * axes (it is packed into the items' memory), no new array for the
+     * photons (they move in place), and both. */
+    static const unsigned fail[] = { 0, 1u << 1, 1u << 2, 1u << 3, 1u << 1 | 1u << 3 };
+    for (size_t i = 0; i < sizeof fail / sizeof fail[0]; i++) {
+        pf_photon_t *ph = s_copy(input, n * sizeof *input);
+        s_malloc_calls = 0;
+        s_malloc_fail = fail[i];
+        pf_kdtree_t *f = s_fallback_build(&ph, n);
+        s_malloc_fail = 0;
+        CHECK(t && f && memcmp(pf_kdtree_photons(t), s_fallback_photons(f), n * sizeof(pf_photon_t)) == 0,
+              "%s n=%zu, malloc calls failed 0x%x: heapsort fallback builds another layout", s_set_names[kind], n,
+              fail[i]);
+        s_fallback_destroy(&f);
+    }
     pf_kdtree_destroy(&t);
-    s_fallback_destroy(&f);
     free(input);
 }
 
