@@ -1065,27 +1065,27 @@ static size_t s_radius(const pf_kdtree_t *self, pf_vec3 x, float r2, pf_knn_t *o
     s_entry_t stack[S_STACK];
     int sp = 0;
     uint32_t lo = 0, hi = (uint32_t)self->n;
+    /* Whether a photon is inside is a coin toss to the branch predictor, so
+     * each one tested is written to the next free slot (or, once cap are
+     * kept, to a slot of its own) and counted only if inside. */
+    pf_knn_t spill;
     for (;;) {
         while (lo < hi) {
             if (hi - lo <= S_LEAF) {
                 for (uint32_t m = lo; m < hi; m++) {
                     float d2 = s_dist2(q, ph[m].pos);
-                    if (d2 <= r2) {
-                        if (count < cap)
-                            out[count] = (pf_knn_t){ m, d2 };
-                        count++;
-                    }
+                    pf_knn_t *slot = count < cap ? &out[count] : &spill;
+                    *slot = (pf_knn_t){ m, d2 };
+                    count += d2 <= r2;
                 }
                 break;
             }
             uint32_t m = lo + (hi - lo) / 2;
             const float *p = ph[m].pos;
             float d2 = s_dist2(q, p);
-            if (d2 <= r2) {
-                if (count < cap)
-                    out[count] = (pf_knn_t){ m, d2 };
-                count++;
-            }
+            pf_knn_t *slot = count < cap ? &out[count] : &spill;
+            *slot = (pf_knn_t){ m, d2 };
+            count += d2 <= r2;
             unsigned a = pf_photon_axis(&ph[m]);
             float diff = q[a] - p[a];
             uint32_t flo, fhi;

@@ -76,7 +76,8 @@ int pf_kdtree_nearest_normal(const pf_kdtree_t *self, pf_vec3 x, pf_vec3 n, floa
 int pf_kdtree_index_nearest(pf_kdtree_t *self);
 
 /* All photons with squared distance <= r2 from x: writes up to cap of them to
- * out and returns how many there are in total. Their order is fixed by the
+ * out and returns how many there are in total (the slots of out past those
+ * may be written too). Their order is fixed by the
  * tree and x alone (a walk of the tree, nearer child first, that a larger r2
  * only extends): the photons found within a smaller r2 come in the same
  * relative order, so sums over them do not depend on the radius searched. */
