@@ -6,8 +6,8 @@
  * no caustic photons, all threads), then repeats on the same photons: shuffle
  * a copy into a fixed pseudo-random order (the tracer's output order is by
  * photon, spatially random, unlike a built tree's), build the kd-tree, and
- * precompute irradiance as a render does (every stride-th photon, at most
- * PF_IRRADIANCE_MAX_POINTS points, global_k nearest). Prints each repetition
+ * precompute irradiance as a render does (pf_irradiance_points_stride,
+ * global_k nearest). Prints each repetition
  * and the best, and the bytes per photon the built tree holds. Not a test.
  *
  * usage: bench_photons [scene.json] [photons] [repetitions] */
@@ -36,9 +36,7 @@ int main(int argc, char **argv)
     bench_photon_pass(&b, &s, &maps, &st);
     size_t n = pf_kdtree_size(maps.global);
     float r2 = maps.global_r2;
-    size_t stride = s.irradiance_stride > 0 ? (size_t)s.irradiance_stride : 1;
-    if (n / stride > PF_IRRADIANCE_MAX_POINTS)
-        stride = (n + PF_IRRADIANCE_MAX_POINTS - 1) / PF_IRRADIANCE_MAX_POINTS;
+    size_t stride = pf_irradiance_points_stride(n, &s);
     printf("scene %s, %llu photons emitted, %zu stored, %llu irradiance points (stride %zu, k %d), %d threads\n",
            path, photons, n, (unsigned long long)st.irradiance_points, stride, s.global_k, threads);
     printf("photon pass as rendered: trace %.2f s, kd-trees %.2f s, irradiance %.2f s\n", st.trace_s, st.build_s,

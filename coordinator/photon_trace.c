@@ -273,13 +273,7 @@ int pf_photon_pass(const pf_scene_t *scene, const pf_accel_t *accel, const pf_li
         maps->irradiance = none ? pf_kdtree_build(&none, 0) : NULL;
         rc = maps->irradiance ? PF_OK : PF_ENOMEM;
     } else {
-        /* More than PF_IRRADIANCE_MAX_POINTS points add time and memory but
-         * no visible detail (the lookup is piecewise constant over them
-         * anyway), so large maps take every stride-th photon with a wider
-         * stride. */
-        size_t stride = settings->irradiance_stride > 0 ? (size_t)settings->irradiance_stride : 1;
-        if (gn / stride > PF_IRRADIANCE_MAX_POINTS)
-            stride = (gn + PF_IRRADIANCE_MAX_POINTS - 1) / PF_IRRADIANCE_MAX_POINTS;
+        size_t stride = pf_irradiance_points_stride(gn, settings);
         rc = pf_irradiance_precompute(maps->global, (int)stride, settings->global_k, maps->global_r2, accel, threads,
                                       &maps->irradiance);
     }
@@ -290,6 +284,28 @@ int pf_photon_pass(const pf_scene_t *scene, const pf_accel_t *accel, const pf_li
     }
     stats->irradiance_points = pf_kdtree_size(maps->irradiance);
     return PF_OK;
+}
+
+/* More than PF_IRRADIANCE_MAX_POINTS points add time and memory but no
+ * visible detail: the lookup is piecewise constant over them, and each point's
+ * estimate is already an average over its global_k photons. So large maps
+ * take every stride-th photon with a wider stride. The widening stops at
+ * global_k / 4, and the map gets more points than the cap instead: a lookup
+ * reads the nearest point only when it lies within that point's support (the
+ * disc of its k photons, pf_irradiance_lookup), and wider strides leave gaps
+ * between the supports. Measured on the Cornell box (test_render's
+ * s_test_point_stride): the mean irradiance lookups read is the same at
+ * strides 4 and k / 4 (+0.15 %), 1 % low at k / 2.7 and 5 % low at k / 2. */
+size_t pf_irradiance_points_stride(size_t stored, const pf_settings_t *settings)
+{
+    size_t stride = settings->irradiance_stride > 0 ? (size_t)settings->irradiance_stride : 1;
+    if (stored / stride <= PF_IRRADIANCE_MAX_POINTS)
+        return stride;
+    size_t wide = (stored + PF_IRRADIANCE_MAX_POINTS - 1) / PF_IRRADIANCE_MAX_POINTS;
+    size_t most = settings->global_k / 4 > 1 ? (size_t)(settings->global_k / 4) : 1;
+    if (wide > most)
+        wide = most;
+    return wide > stride ? wide : stride;
 }
 
 void pf_photon_skip_gather(const pf_photon_stats_t *stats, pf_settings_t *s)

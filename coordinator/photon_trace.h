@@ -8,8 +8,9 @@
 #include "common/photonmap.h"
 #include "common/scene.h"
 
-/* The most irradiance points one map gets (see pf_photon_pass). */
-#define PF_IRRADIANCE_MAX_POINTS ((size_t)1000000)
+/* The most irradiance points one map gets, unless that would space them
+ * wider than their estimates reach (pf_irradiance_points_stride). */
+#define PF_IRRADIANCE_MAX_POINTS ((size_t)500000)
 
 typedef struct pf_photon_stats {
     uint64_t global_stored, caustic_stored, irradiance_points;
@@ -18,6 +19,12 @@ typedef struct pf_photon_stats {
     int gather_skipped;         /* none were: no irradiance was precomputed (pf_photon_skip_gather) */
     double trace_s, build_s, irradiance_s;
 } pf_photon_stats_t;
+
+/* Every how many stored global photons (of `stored`) an irradiance point is
+ * precomputed: settings->irradiance_stride, widened so that at most
+ * PF_IRRADIANCE_MAX_POINTS points are made, but never past global_k / 4
+ * by that widening (see photon_trace.c). At least 1. */
+size_t pf_irradiance_points_stride(size_t stored, const pf_settings_t *settings);
 
 /* Runs the photon pass with settings->threads OpenMP threads. Photon i draws
  * from its own counter-based stream and photons are stored in index order,
