@@ -24,30 +24,27 @@
 #include <stdlib.h>
 
 #include "bench/bench_setup.h"
-#include "common/bsdf.h"
-#include "common/irrtex.h"
-#include "common/rng.h"
-#include "worker/render.h"
+#include "material/bsdf.h"
+#include "photon/irrtex.h"
+#include "base/rng.h"
+#include "render/render.h"
 
 int main(int argc, char **argv)
 {
     const char *path = argc > 1 ? argv[1] : "scenes/cornell-spheres/scene.json";
     int w = argc > 2 ? atoi(argv[2]) : 128, gather = argc > 3 ? atoi(argv[3]) : 16;
-    bench_scene_t b = bench_load(path);
+    pf_frame_t b = bench_load(path);
     const pf_scene_t *scene = b.scene;
     const pf_accel_t *accel = b.accel;
     pf_settings_t s = scene->settings;
     s.width = s.height = w;
-    pf_photon_maps_t maps;
     pf_photon_stats_t st;
-    bench_photon_pass(&b, &s, &maps, &st);
-    if (pf_photon_maps_index(&maps, scene, accel) != PF_OK) {
-        fprintf(stderr, "out of memory for the irradiance grid\n");
-        return 1;
-    }
+    bench_photon_pass(&b, &s, &st);
+    pf_frame_ready(&b);
+    const pf_photon_maps_t *maps = &b.maps;
     pf_accel_thread_init();
     pf_render_ctx_t ctx;
-    pf_render_ctx_init(&ctx, scene, accel, b.lights, &maps, &s);
+    pf_render_ctx_init(&ctx, &b, &s);
 
     size_t cap = (size_t)w * (size_t)w * (size_t)gather, n = 0;
     pf_ray_t *rays = malloc(cap * sizeof *rays);
@@ -74,9 +71,9 @@ int main(int argc, char **argv)
     double sink = 0.0;
     double best_steps[3] = { 1e30, 1e30, 1e30 };
     size_t lookups = 0, traced = 0, flat = 0;
-    for (size_t i = 0; i < pf_kdtree_size(maps.irradiance); i++)
-        flat += pf_irradiance_flat(&pf_kdtree_photons(maps.irradiance)[i]);
-    const pf_kdtree_t *irr = maps.irradiance;
+    for (size_t i = 0; i < pf_kdtree_size(maps->irradiance); i++)
+        flat += pf_irradiance_flat(&pf_kdtree_photons(maps->irradiance)[i]);
+    const pf_kdtree_t *irr = maps->irradiance;
     for (int rep = 0; rep < 3; rep++) {
         for (int step = 0; step < 3; step++) {
             double ta = pf_now();
@@ -89,7 +86,7 @@ int main(int argc, char **argv)
                     continue;
                 pf_vec3 nf = pf_face_forward(h.ng, pf_neg(rays[i].d));
                 pf_knn_t nn;
-                if (!pf_kdtree_nearest_normal(irr, h.p, nf, PF_NORMAL_AGREE, maps.irradiance_r2, &nn))
+                if (!pf_kdtree_nearest_normal(irr, h.p, nf, PF_NORMAL_AGREE, maps->irradiance_r2, &nn))
                     continue;
                 sink += nn.d2;
                 if (step == 1)
@@ -129,7 +126,7 @@ int main(int argc, char **argv)
             for (size_t i = 0; i < nl; i++) {
                 size_t j = mode == 1 ? i / 8 * 8 : mode == 2 ? pf_rng_u32(&order) % nl : i;
                 pf_knn_t nn;
-                if (pf_kdtree_nearest_normal(irr, xs[j], nfs[j], PF_NORMAL_AGREE, maps.irradiance_r2, &nn))
+                if (pf_kdtree_nearest_normal(irr, xs[j], nfs[j], PF_NORMAL_AGREE, maps->irradiance_r2, &nn))
                     sink += nn.d2;
             }
             double dt = pf_now() - ta;
@@ -173,17 +170,16 @@ int main(int argc, char **argv)
            nl, best_l[0] / (double)nl * 1e9, best_l[1] / (double)nl * 1e9, best_l[2] / (double)nl * 1e9);
     printf("irradiance points flat (no leak-test ray): %.1f %%; lookups within a support %zu, of which %.1f %% "
            "traced the leak-test ray\n",
-           100.0 * (double)flat / (double)pf_kdtree_size(maps.irradiance), lookups,
+           100.0 * (double)flat / (double)pf_kdtree_size(maps->irradiance), lookups,
            lookups ? 100.0 * (double)traced / (double)lookups : 0.0);
-    if (maps.texels) {
-        size_t direct, filled = pf_irrtex_filled(maps.texels, &direct);
+    if (b.texels) {
+        size_t direct, filled = pf_irrtex_filled(b.texels, &direct);
         printf("irradiance texels: side %.4g, %zu allocated, %zu filled (%.1f MB), of which %.1f %% look up "
                "directly\n",
-               (double)pf_irrtex_side(maps.texels), pf_irrtex_count(maps.texels), filled, 8.0 * (double)filled / 1e6,
+               (double)pf_irrtex_side(b.texels), pf_irrtex_count(b.texels), filled, 8.0 * (double)filled / 1e6,
                filled ? 100.0 * (double)direct / (double)filled : 0.0);
     }
     free(rays);
-    pf_photon_maps_free(&maps);
-    bench_free(&b);
+    pf_frame_close(&b);
     return 0;
 }

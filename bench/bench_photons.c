@@ -17,25 +17,25 @@
 #include <string.h>
 
 #include "bench/bench_setup.h"
-#include "common/rng.h"
-#include "coordinator/irradiance.h"
+#include "base/rng.h"
+#include "photon/irradiance.h"
 
 int main(int argc, char **argv)
 {
     const char *path = argc > 1 ? argv[1] : "scenes/cornell-box/scene.json";
     unsigned long long photons = argc > 2 ? strtoull(argv[2], NULL, 10) : 10000000ull;
     int reps = argc > 3 ? atoi(argv[3]) : 3;
-    bench_scene_t b = bench_load(path);
+    pf_frame_t b = bench_load(path);
     pf_settings_t s = b.scene->settings;
     s.photons = photons;
     s.caustic_photons = 0;
     int threads = omp_get_num_procs();
     s.threads = threads;
-    pf_photon_maps_t maps;
     pf_photon_stats_t st;
-    bench_photon_pass(&b, &s, &maps, &st);
-    size_t n = pf_kdtree_size(maps.global);
-    float r2 = maps.global_r2;
+    bench_photon_pass(&b, &s, &st);
+    pf_photon_maps_t *maps = &b.maps;
+    size_t n = pf_kdtree_size(maps->global);
+    float r2 = maps->global_r2;
     size_t stride = pf_irradiance_points_stride(n, &s);
     printf("scene %s, %llu photons emitted, %zu stored, %llu irradiance points (stride %zu, k %d), %d threads\n",
            path, photons, n, (unsigned long long)st.irradiance_points, stride, s.global_k, threads);
@@ -44,7 +44,7 @@ int main(int argc, char **argv)
     pf_photon_t *shuffled = malloc(n * sizeof *shuffled);
     if (!shuffled)
         return 1;
-    memcpy(shuffled, pf_kdtree_photons(maps.global), n * sizeof *shuffled);
+    memcpy(shuffled, pf_kdtree_photons(maps->global), n * sizeof *shuffled);
     pf_rng_t rng = pf_rng_make(3, PF_STREAM_TEST, 0, 0);
     for (size_t i = n; i > 1; i--) {
         size_t j = (size_t)(pf_rng_float(&rng) * (float)i) % i;
@@ -52,7 +52,6 @@ int main(int argc, char **argv)
         shuffled[i - 1] = shuffled[j];
         shuffled[j] = t;
     }
-    pf_photon_maps_free(&maps);
     double best_b = 1e30, best_i = 1e30, best_sum = 1e30;
     for (int r = 0; r < reps; r++) {
         pf_photon_t *copy = malloc(n * sizeof *copy);
@@ -77,6 +76,6 @@ int main(int argc, char **argv)
            "bytes per photon\n",
            best_b, best_i, best_sum, sizeof(pf_photon_t));
     free(shuffled);
-    bench_free(&b);
+    pf_frame_close(&b);
     return 0;
 }

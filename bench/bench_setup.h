@@ -7,49 +7,33 @@
 #include <stdio.h>
 #include <stdlib.h>
 
-#include "common/accel.h"
-#include "common/light.h"
-#include "common/log.h"
-#include "coordinator/photon_trace.h"
+#include "base/log.h"
+#include "load/load.h"
+#include "photon/trace.h"
+#include "render/frame.h"
 
-typedef struct bench_scene {
-    pf_scene_t *scene; /* its settings are the scene file's */
-    pf_accel_t *accel;
-    pf_lights_t *lights;
-} bench_scene_t;
-
-static inline bench_scene_t bench_load(const char *path)
+/* Loads the scene at path into a frame (its settings are the scene
+ * file's); exits with a message on failure. */
+static inline pf_frame_t bench_load(const char *path)
 {
     pf_log_set_level(PF_LOG_WARN);
     pf_error_t err;
-    bench_scene_t b = { pf_scene_load(path, &err), NULL, NULL };
-    if (!b.scene) {
+    pf_scene_t *scene = pf_scene_load(path, &err);
+    pf_frame_t f;
+    if (!scene || pf_frame_open_owned(&f, &scene, &err) != PF_OK) {
         fprintf(stderr, "%s\n", err.msg);
         exit(1);
     }
-    b.accel = pf_accel_create(b.scene, &err);
-    b.lights = pf_lights_build(b.scene);
-    if (!b.accel || !b.lights) {
-        fprintf(stderr, "%s: %s\n", path, b.accel ? "out of memory for the lights" : err.msg);
-        exit(1);
-    }
-    return b;
+    return f;
 }
 
-static inline void bench_photon_pass(const bench_scene_t *b, const pf_settings_t *s, pf_photon_maps_t *maps,
-                                     pf_photon_stats_t *st)
+/* The photon pass into the frame's maps; exits on failure. */
+static inline void bench_photon_pass(pf_frame_t *f, const pf_settings_t *s, pf_photon_stats_t *st)
 {
-    if (pf_photon_pass(b->scene, b->accel, b->lights, s, maps, st) != PF_OK) {
+    if (pf_photon_pass(f->scene, f->accel, f->lights, s, &f->maps, st) != PF_OK) {
         fprintf(stderr, "photon pass failed (out of memory)\n");
         exit(1);
     }
-}
-
-static inline void bench_free(bench_scene_t *b)
-{
-    pf_lights_destroy(&b->lights);
-    pf_accel_destroy(&b->accel);
-    pf_scene_destroy(&b->scene);
 }
 
 #endif

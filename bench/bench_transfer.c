@@ -16,10 +16,10 @@
 #include <string.h>
 #include <zmq.h>
 
-#include "common/hash.h"
-#include "common/log.h"
-#include "common/rng.h"
-#include "proto/mapfile.h"
+#include "base/hash.h"
+#include "base/log.h"
+#include "base/rng.h"
+#include "photon/mapfile.h"
 #include "proto/messages.h"
 
 typedef struct {

@@ -8,9 +8,9 @@
 #include <omp.h>
 #include <string.h>
 
-#include "common/log.h"
-#include "coordinator/photon_trace.h"
-#include "worker/render.h"
+#include "base/log.h"
+#include "photon/trace.h"
+#include "render/render.h"
 
 /* Writing the image and the farm's last results take a moment after the
  * last tile; the render may overrun its estimate by this fraction. */
@@ -38,8 +38,7 @@ static uint64_t s_clamp_photons(double n)
     return (uint64_t)n;
 }
 
-int pf_budget_plan_photons(pf_budget_t *b, const pf_scene_t *scene, const pf_accel_t *accel,
-                           const pf_lights_t *lights, pf_settings_t *s)
+int pf_budget_plan_photons(pf_budget_t *b, const pf_frame_t *frame, pf_settings_t *s)
 {
     if (b->fix_photons && b->fix_caustic)
         return PF_OK;
@@ -56,7 +55,7 @@ int pf_budget_plan_photons(pf_budget_t *b, const pf_scene_t *scene, const pf_acc
         pf_photon_maps_t maps;
         pf_photon_stats_t st;
         double t0 = pf_now();
-        int rc = pf_photon_pass(scene, accel, lights, &cal, &maps, &st);
+        int rc = pf_photon_pass(frame->scene, frame->accel, frame->lights, &cal, &maps, &st);
         double t = pf_now() - t0;
         if (rc != PF_OK)
             return rc;
@@ -91,14 +90,13 @@ enum { S_PROBE_BLOCK = 8 };
 /* Renders the probe's blocks at spp samples per pixel (the settings in base
  * otherwise) and returns the thread-seconds per camera sample, the filtered
  * gathers of a block's border costed as the render's tiles will carry them. */
-static double s_probe(pf_budget_t *b, const pf_scene_t *scene, const pf_accel_t *accel, const pf_lights_t *lights,
-                      const pf_photon_maps_t *maps, unsigned terms, int local_threads, const pf_settings_t *base,
-                      int spp)
+static double s_probe(pf_budget_t *b, const pf_frame_t *frame, unsigned terms, int local_threads,
+                      const pf_settings_t *base, int spp)
 {
     pf_settings_t probe = *base;
     probe.spp = spp;
     pf_render_ctx_t ctx;
-    pf_render_ctx_init(&ctx, scene, accel, lights, maps, &probe);
+    pf_render_ctx_init(&ctx, frame, &probe);
     ctx.terms = terms;
     int bx = (base->width + S_PROBE_BLOCK - 1) / S_PROBE_BLOCK, by = (base->height + S_PROBE_BLOCK - 1) / S_PROBE_BLOCK;
     /* A gx x gy lattice of blocks, evenly spaced in both directions, so the
@@ -151,8 +149,7 @@ static double s_probe(pf_budget_t *b, const pf_scene_t *scene, const pf_accel_t 
     return sample_s;
 }
 
-void pf_budget_plan_spp(pf_budget_t *b, const pf_scene_t *scene, const pf_accel_t *accel, const pf_lights_t *lights,
-                        const pf_photon_maps_t *maps, unsigned terms, int local_threads, pf_settings_t *s)
+void pf_budget_plan_spp(pf_budget_t *b, const pf_frame_t *frame, unsigned terms, int local_threads, pf_settings_t *s)
 {
     if (b->fix_spp)
         return;
@@ -163,8 +160,8 @@ void pf_budget_plan_spp(pf_budget_t *b, const pf_scene_t *scene, const pf_accel_
      * planned, 16.2 s taken, cornell-spheres at 30 s). Two probes, at
      * S_PROBE_LO and S_PROBE_HI, give p and c. */
     enum { S_PROBE_LO = 2, S_PROBE_HI = 8 };
-    double e_lo = s_probe(b, scene, accel, lights, maps, terms, local_threads, s, S_PROBE_LO);
-    double e_hi = s_probe(b, scene, accel, lights, maps, terms, local_threads, s, S_PROBE_HI);
+    double e_lo = s_probe(b, frame, terms, local_threads, s, S_PROBE_LO);
+    double e_hi = s_probe(b, frame, terms, local_threads, s, S_PROBE_HI);
     double c = (S_PROBE_HI * e_hi - S_PROBE_LO * e_lo) / (S_PROBE_HI - S_PROBE_LO);
     double p = S_PROBE_LO * (e_lo - c);
     if (!(c > 0.0) || !(p >= 0.0)) {

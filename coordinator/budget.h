@@ -27,10 +27,8 @@
 #ifndef PF_BUDGET_H
 #define PF_BUDGET_H
 
-#include "common/accel.h"
-#include "common/light.h"
-#include "common/photonmap.h"
-#include "common/scene.h"
+#include "render/frame.h"
+#include "scene/scene.h"
 
 #define PF_BUDGET_CAL_PHOTONS 20000
 #define PF_BUDGET_PHOTON_SHARE 0.12
@@ -68,15 +66,13 @@ double pf_budget_left(const pf_budget_t *b);
 /* Chooses s->photons and s->caustic_photons (and s->gather) for the time
  * left, running a small calibration photon pass with s->threads threads.
  * 0 or a status (out of memory, Embree). */
-int pf_budget_plan_photons(pf_budget_t *b, const pf_scene_t *scene, const pf_accel_t *accel,
-                           const pf_lights_t *lights, pf_settings_t *s);
+int pf_budget_plan_photons(pf_budget_t *b, const pf_frame_t *frame, pf_settings_t *s);
 
-/* Chooses s->spp for the time left, with the maps built: renders the probe
- * with local_threads threads. maps must be indexed (pf_photon_maps_index) as
- * the real render will be. Always succeeds; spp is at least 1 (a warning
+/* Chooses s->spp for the time left, with the frame's maps built: renders
+ * the probe with local_threads threads. The frame must be ready
+ * (pf_frame_ready) as the real render's will be. Always succeeds; spp is at least 1 (a warning
  * says when even that will not fit). */
-void pf_budget_plan_spp(pf_budget_t *b, const pf_scene_t *scene, const pf_accel_t *accel, const pf_lights_t *lights,
-                        const pf_photon_maps_t *maps, unsigned terms, int local_threads, pf_settings_t *s);
+void pf_budget_plan_spp(pf_budget_t *b, const pf_frame_t *frame, unsigned terms, int local_threads, pf_settings_t *s);
 
 /* Logs the plan: the settings chosen and the measurements behind them. */
 void pf_budget_log(const pf_budget_t *b, const pf_settings_t *s);

@@ -11,8 +11,8 @@
 #include <stdio.h>
 #include <string.h>
 
-#include "common/image.h"
-#include "common/metrics.h"
+#include "image/image.h"
+#include "image/metrics.h"
 
 enum {
     S_EXIT_OK = 0,

@@ -27,18 +27,16 @@
 #include <unistd.h>
 #include <zmq.h>
 
-#include "common/accel.h"
-#include "common/hash.h"
-#include "common/keyfile.h"
-#include "common/light.h"
-#include "common/log.h"
+#include "base/hash.h"
+#include "base/keyfile.h"
+#include "base/log.h"
 #include "coordinator/progress.h"
 #include "coordinator/spawn.h"
 #include "coordinator/zap.h"
-#include "proto/mapfile.h"
+#include "photon/mapfile.h"
 #include "proto/messages.h"
 #include "proto/sceneblob.h"
-#include "worker/render.h"
+#include "render/render.h"
 
 #define S_MAX_WORKERS 1024
 #define S_MAX_LOCAL 256
@@ -80,9 +78,7 @@ typedef struct s_photons {
     pf_settings_t settings; /* a time limit changes them here, before the job goes out */
     pf_budget_t *budget;
     unsigned terms;
-    pf_accel_t *accel;
-    pf_lights_t *lights;
-    pf_photon_maps_t maps;
+    pf_frame_t frame; /* the scene's accel and lights, then the maps */
     pf_photon_stats_t stats;
     pf_buf_t scene_blob, maps_blob;
     uint64_t scene_hash, maps_hash;
@@ -94,16 +90,13 @@ typedef struct s_photons {
 static void *s_photon_thread(void *arg)
 {
     s_photons *p = arg;
-    p->rc = PF_OK;
-    p->accel = pf_accel_create(p->scene, &p->err);
-    p->lights = pf_lights_build(p->scene);
-    if (!p->accel || !p->lights) {
-        p->rc = p->accel ? PF_ENOMEM : PF_EEMBREE;
-    } else {
+    pf_frame_t *fr = &p->frame;
+    p->rc = pf_frame_open(fr, p->scene, &p->err);
+    if (p->rc == PF_OK) {
         if (p->budget)
-            p->rc = pf_budget_plan_photons(p->budget, p->scene, p->accel, p->lights, &p->settings);
+            p->rc = pf_budget_plan_photons(p->budget, fr, &p->settings);
         if (p->rc == PF_OK)
-            p->rc = pf_photon_pass(p->scene, p->accel, p->lights, &p->settings, &p->maps, &p->stats);
+            p->rc = pf_photon_pass(p->scene, fr->accel, fr->lights, &p->settings, &fr->maps, &p->stats);
         if (p->rc)
             pf_error_set(&p->err, p->rc, NULL, 0, "photon pass failed: %s", pf_strerror(p->rc));
     }
@@ -111,16 +104,15 @@ static void *s_photon_thread(void *arg)
         pf_photon_skip_gather(&p->stats, &p->settings);
     if (p->rc == PF_OK && p->budget) {
         /* The probe renders here with the coordinator's cores, as the workers will. */
-        pf_photon_maps_index(&p->maps, p->scene, p->accel);
-        pf_budget_plan_spp(p->budget, p->scene, p->accel, p->lights, &p->maps, p->terms, p->settings.threads,
-                           &p->settings);
+        pf_frame_ready(fr);
+        pf_budget_plan_spp(p->budget, fr, p->terms, p->settings.threads, &p->settings);
         pf_budget_log(p->budget, &p->settings);
     }
     if (p->rc == PF_OK)
         p->rc = pf_sceneblob_write(p->scene, &p->scene_blob);
     if (p->rc == PF_OK) {
         p->scene_hash = pf_hash_bytes(PF_HASH_INIT, p->scene_blob.data, p->scene_blob.len);
-        p->rc = pf_mapfile_write(&p->maps, p->scene_hash, pf_settings_hash(&p->settings), &p->maps_blob);
+        p->rc = pf_mapfile_write(&fr->maps, p->scene_hash, pf_settings_hash(&p->settings), &p->maps_blob);
         p->maps_hash = pf_hash_bytes(PF_HASH_INIT, p->maps_blob.data, p->maps_blob.len);
         if (p->rc)
             pf_error_set(&p->err, p->rc, NULL, 0, "cannot serialize the photon maps: %s", pf_strerror(p->rc));
@@ -287,7 +279,7 @@ static void s_bad(s_farm *f, const char *peer, const char *why)
 static void s_on_hello(s_farm *f, const uint8_t *id, size_t idlen, const pf_msg_hello_t *h)
 {
     char why[256] = "";
-    pf_fingerprint_t self = pf_fingerprint_self();
+    pf_fingerprint_t self = pf_frame_fingerprint();
     int wi = s_find(f, id, idlen);
     if (wi < 0) {
         for (wi = 0; wi < f->nw && f->w[wi].state != W_FREE; wi++)
@@ -820,9 +812,7 @@ done:
         sum->refused += (uint64_t)pf_zap_stop(&zap);
     if (f.ctx)
         zmq_ctx_term(f.ctx);
-    pf_photon_maps_free(&f.ph.maps);
-    pf_lights_destroy(&f.ph.lights);
-    pf_accel_destroy(&f.ph.accel);
+    pf_frame_close(&f.ph.frame);
     pf_buf_free(&f.ph.scene_blob);
     pf_buf_free(&f.ph.maps_blob);
     pf_buf_free(&f.out);

@@ -9,10 +9,10 @@
 
 #include <stdint.h>
 
-#include "common/image.h"
-#include "common/scene.h"
+#include "image/image.h"
+#include "scene/scene.h"
 #include "coordinator/budget.h"
-#include "coordinator/photon_trace.h"
+#include "photon/trace.h"
 
 typedef struct pf_farm_opts {
     const char *bind;         /* endpoint to bind; NULL: tcp://127.0.0.1:* (loopback, ephemeral port) */

@@ -5,11 +5,11 @@
 #ifndef PF_JOB_H
 #define PF_JOB_H
 
-#include "common/image.h"
-#include "common/scene.h"
+#include "image/image.h"
+#include "scene/scene.h"
 #include "coordinator/budget.h"
-#include "coordinator/photon_trace.h"
-#include "worker/render.h"
+#include "photon/trace.h"
+#include "render/render.h"
 
 typedef struct pf_job_summary {
     pf_photon_stats_t photons;

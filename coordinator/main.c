@@ -10,10 +10,11 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "common/image.h"
-#include "common/log.h"
-#include "common/scene.h"
-#include "common/keyfile.h"
+#include "image/image.h"
+#include "base/log.h"
+#include "load/load.h"
+#include "scene/scene.h"
+#include "base/keyfile.h"
 #include "coordinator/compare.h"
 #include "coordinator/farm.h"
 #include "coordinator/job.h"

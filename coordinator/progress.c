@@ -4,7 +4,7 @@
 #include <stdio.h>
 #include <unistd.h>
 
-#include "common/log.h"
+#include "base/log.h"
 
 void pf_progress_begin(pf_progress_t *p, const char *label, int enabled)
 {

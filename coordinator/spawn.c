@@ -12,7 +12,7 @@
 #include <time.h>
 #include <unistd.h>
 
-#include "common/log.h"
+#include "base/log.h"
 
 int pf_spawn_default_worker_exe(char *buf, size_t len)
 {

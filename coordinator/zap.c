@@ -9,7 +9,7 @@
 #include <string.h>
 #include <zmq.h>
 
-#include "common/log.h"
+#include "base/log.h"
 
 struct pf_zap {
     void *ctx;

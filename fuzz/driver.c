@@ -1,5 +1,5 @@
 /* driver.c: runs the fuzz targets without libFuzzer, for the regression
- * test fuzz_regress (tests/fuzz.cmake) in the ordinary gcc build and in the
+ * test fuzz_regress (tests/fuzz/CMakeLists.txt) in the ordinary gcc build and in the
  * sanitizer build. Every file under tests/data/fuzz/<target>/ (the seeds
  * and every crasher the fuzzers found) is fed to that target's
  * LLVMFuzzerTestOneInput, compiled here under the name pf_fuzz_<target>
@@ -21,7 +21,7 @@
 #include <sys/stat.h>
 #include <time.h>
 
-#include "common/log.h"
+#include "base/log.h"
 
 /* The fuzzers run with -timeout=10 (seconds); sanitizers slow the same
  * input down about three times, which this limit allows for. */

@@ -1,4 +1,4 @@
-/* fuzz_json.c: libFuzzer target for the JSON scene loader (common/scene_json.c
+/* fuzz_json.c: libFuzzer target for the JSON scene loader (load/scene_json.c
  * through pf_scene_load, so the finalize checks run too). The input is the
  * scene file; small OBJ, MTL and PLY models sit beside it under the names the
  * seed scenes use (fuzz_models.h), so obj and ply objects load for real.
@@ -9,9 +9,10 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "common/scene.h"
+#include "scene/scene.h"
 #include "fuzz/fuzz_models.h"
 #include "fuzz/fuzz_util.h"
+#include "load/load.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 

@@ -1,5 +1,5 @@
 /* fuzz_mapfile.c: libFuzzer target for the photon-map deserializer
- * (proto/mapfile.c) and the kd-tree layout check behind it
+ * (photon/mapfile.c) and the kd-tree layout check behind it
  * (pf_kdtree_from_layout).
  *
  * The blob carries a content hash over its header and body, which random
@@ -23,9 +23,9 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "common/hash.h"
-#include "common/photonmap.h"
-#include "proto/mapfile.h"
+#include "base/hash.h"
+#include "photon/photonmap.h"
+#include "photon/mapfile.h"
 #include "fuzz/fuzz_util.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);

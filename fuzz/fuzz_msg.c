@@ -19,8 +19,9 @@
 #include <string.h>
 
 #include "proto/messages.h"
-#include "proto/wire.h"
+#include "base/wire.h"
 #include "fuzz/fuzz_util.h"
+#include "render/frame.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 
@@ -40,7 +41,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     float *pixels = NULL;
     switch (msg.type) {
     case PF_MSG_HELLO: {
-        pf_fingerprint_t self = pf_fingerprint_self();
+        pf_fingerprint_t self = pf_frame_fingerprint();
         char text[512];
         rc = pf_fingerprint_check(&msg.u.hello.fp, &self, text, sizeof text);
         PF_FUZZ_REQUIRE(rc == PF_OK || (rc == PF_EMISMATCH && text[0]), "fingerprint check returned %d", rc);

@@ -1,4 +1,4 @@
-/* fuzz_pfm.c: libFuzzer target for the PFM reader (common/image.c), which
+/* fuzz_pfm.c: libFuzzer target for the PFM reader (image/image.c), which
  * `photonfarm compare` uses on images it did not write. An accepted image
  * has a positive size and a pixel array of that size (ASan checks the
  * reads below).
@@ -7,7 +7,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "common/image.h"
+#include "image/image.h"
 #include "fuzz/fuzz_util.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);

@@ -1,4 +1,4 @@
-/* fuzz_ply.c: libFuzzer target for the PLY reader (common/ply.c: ascii and
+/* fuzz_ply.c: libFuzzer target for the PLY reader (load/ply.c: ascii and
  * binary of both byte orders). Each input is loaded as a scene by itself
  * (pf_scene_load: material, point light, finalize and the scene-blob round
  * trip), and again with a mirroring transform, which reverses the winding
@@ -8,8 +8,9 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "common/scene.h"
+#include "scene/scene.h"
 #include "fuzz/fuzz_util.h"
+#include "load/load.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 

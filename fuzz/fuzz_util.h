@@ -20,8 +20,9 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-#include "common/log.h"
-#include "common/scene.h"
+#include "base/log.h"
+#include "load/load.h"
+#include "scene/scene.h"
 #include "proto/sceneblob.h"
 
 /* Aborts with a message when an oracle fails: a finding, like a crash. */

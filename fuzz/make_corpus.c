@@ -24,13 +24,15 @@
 #include <string.h>
 #include <sys/stat.h>
 
-#include "common/accel.h"
-#include "common/hash.h"
-#include "common/light.h"
-#include "common/log.h"
-#include "common/scene.h"
-#include "coordinator/photon_trace.h"
-#include "proto/mapfile.h"
+#include "accel/accel.h"
+#include "base/hash.h"
+#include "light/light.h"
+#include "base/log.h"
+#include "load/load.h"
+#include "render/frame.h"
+#include "scene/scene.h"
+#include "photon/trace.h"
+#include "photon/mapfile.h"
 #include "proto/messages.h"
 #include "proto/sceneblob.h"
 
@@ -81,7 +83,7 @@ static void s_messages(void)
     pf_msg_t m;
     memset(&m, 0, sizeof m);
     m.type = PF_MSG_HELLO;
-    m.u.hello.fp = pf_fingerprint_self();
+    m.u.hello.fp = pf_frame_fingerprint();
     m.u.hello.threads = 8;
     snprintf(m.u.hello.name, sizeof m.u.hello.name, "node7:4242");
     s_put_msg("seed-hello", &m);

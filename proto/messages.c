@@ -38,10 +38,8 @@
 #include <stdio.h>
 #include <string.h>
 
-#include "common/photon.h"
-#include "common/status.h"
-#include "proto/mapfile.h"
-#include "proto/wire.h"
+#include "base/status.h"
+#include "base/wire.h"
 
 #ifndef PF_GIT_HASH
 #define PF_GIT_HASH "unknown"
@@ -94,14 +92,14 @@ static void s_whyf(char *why, size_t why_len, const char *fmt, ...)
 
 /* ---- fingerprint ---- */
 
-pf_fingerprint_t pf_fingerprint_self(void)
+pf_fingerprint_t pf_fingerprint_make(uint16_t photon_size, uint16_t map_version)
 {
     pf_fingerprint_t fp;
     memset(&fp, 0, sizeof fp);
     fp.protocol = PF_PROTO_VERSION;
-    fp.photon_size = (uint16_t)sizeof(pf_photon_t);
+    fp.photon_size = photon_size;
     fp.float_size = (uint16_t)sizeof(float);
-    fp.map_version = PF_MAPFILE_VERSION;
+    fp.map_version = map_version;
     snprintf(fp.git, sizeof fp.git, "%s", PF_GIT_HASH);
     return fp;
 }

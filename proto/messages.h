@@ -35,12 +35,13 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "common/scene.h"
+#include "base/wire.h"
+#include "scene/scene.h"
 
 #define PF_PROTO_MAGIC 0x4d524650u /* "PFRM" read as little-endian bytes 'P','F','R','M' */
 #define PF_PROTO_VERSION 2
 #define PF_PROTO_HEADER_SIZE 16
-#define PF_PROTO_MAX_STRING 1024
+#define PF_PROTO_MAX_STRING PF_WIRE_MAX_STRING
 #define PF_PROTO_CHUNK_SIZE (1u << 20)            /* blob chunk payload */
 #define PF_PROTO_MAX_TILE_PIXELS (256u * 256u)    /* a RESULT carries at most this many pixels */
 #define PF_PROTO_MAX_MESSAGE (PF_PROTO_CHUNK_SIZE + 4096u) /* ZMQ_MAXMSGSIZE on both sides */
@@ -70,8 +71,10 @@ typedef struct pf_fingerprint {
     char git[48];           /* git hash of the build, NUL-terminated */
 } pf_fingerprint_t;
 
-/* This build's fingerprint. */
-pf_fingerprint_t pf_fingerprint_self(void);
+/* This build's fingerprint, given what the layers above the protocol know:
+ * the size of their photon record and the version of their photon-map blob
+ * (render/frame.h's pf_frame_fingerprint passes them). */
+pf_fingerprint_t pf_fingerprint_make(uint16_t photon_size, uint16_t map_version);
 /* 0 when a and b may work together; else PF_EMISMATCH with a sentence in
  * why (e.g. "protocol version 2 (worker) vs 1 (coordinator)"). The git hash is
  * reported but only a protocol/layout difference refuses. */
@@ -158,13 +161,6 @@ typedef struct pf_msg {
     } u;
 } pf_msg_t;
 
-/* A growable output buffer for encoders. */
-typedef struct pf_buf {
-    uint8_t *data;
-    size_t len, cap;
-} pf_buf_t;
-void pf_buf_free(pf_buf_t *b);
-
 /* Encodes msg (header from msg->type and msg->job) into out (reset first).
  * 0, PF_ENOMEM, or PF_EINVAL when a field is out of range. */
 int pf_msg_encode(const pf_msg_t *msg, pf_buf_t *out);
@@ -178,5 +174,16 @@ int pf_msg_decode(const uint8_t *frame, size_t len, pf_msg_t *msg, char *why, si
 void pf_msg_result_pixels(const pf_msg_result_t *r, float *dst);
 
 const char *pf_msg_type_name(int type);
+
+/* The render settings as one field group, shared by the JOB message and the
+ * scene blob so that both spell them the same way (the field order is
+ * documented in messages.c). pf_wr_settings returns 0 or PF_ENOMEM;
+ * pf_rd_settings latches the cursor on truncation or a non-finite float. */
+int pf_wr_settings(pf_buf_t *b, const pf_settings_t *s);
+void pf_rd_settings(pf_rd_t *r, pf_settings_t *s);
+/* 0 when every field is in the range a tile render accepts (the JOB rules in
+ * messages.c); else PF_EINVAL with why naming the field and its value, e.g.
+ * "settings.spp 0 is out of range 1..2147483647". */
+int pf_settings_check(const pf_settings_t *s, char *why, size_t why_len);
 
 #endif

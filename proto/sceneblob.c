@@ -31,7 +31,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "proto/wire.h"
+#include "base/wire.h"
 
 #define S_WHERE "scene blob"
 

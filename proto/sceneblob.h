@@ -5,7 +5,7 @@
 #ifndef PF_SCENEBLOB_H
 #define PF_SCENEBLOB_H
 
-#include "common/scene.h"
+#include "scene/scene.h"
 #include "proto/messages.h"
 
 #define PF_SCENEBLOB_MAGIC 0x4e435346u /* "FSCN" */

@@ -43,17 +43,17 @@
 #include <unistd.h>
 #include <zmq.h>
 
-#include "common/accel.h"
-#include "common/hash.h"
-#include "common/keyfile.h"
-#include "common/light.h"
-#include "common/log.h"
-#include "common/photonmap.h"
-#include "common/scene.h"
-#include "proto/mapfile.h"
+#include "accel/accel.h"
+#include "base/hash.h"
+#include "base/keyfile.h"
+#include "light/light.h"
+#include "base/log.h"
+#include "photon/photonmap.h"
+#include "scene/scene.h"
+#include "photon/mapfile.h"
 #include "proto/messages.h"
 #include "proto/sceneblob.h"
-#include "worker/render.h"
+#include "render/render.h"
 
 #define S_POLL_MS 100             /* longest wait: signals and timers are noticed this quickly */
 #define S_DEAD_AFTER 5            /* coordinator heartbeat intervals of silence before it is gone */
@@ -88,10 +88,7 @@ typedef struct s_blob {
  * job whose settings would change the maps must not reuse them. */
 typedef struct s_built {
     uint64_t scene_hash, maps_hash, settings_hash;
-    pf_scene_t *scene;
-    pf_accel_t *accel;
-    pf_lights_t *lights;
-    pf_photon_maps_t maps;
+    pf_frame_t frame;
     int refs; /* the cache's and each job's; main thread only */
 } s_built;
 
@@ -206,11 +203,7 @@ static void s_built_release(s_built *b)
 {
     if (!b || --b->refs > 0)
         return;
-    /* The accel and the lights point into the scene: free them first. */
-    pf_photon_maps_free(&b->maps);
-    pf_lights_destroy(&b->lights);
-    pf_accel_destroy(&b->accel);
-    pf_scene_destroy(&b->scene);
+    pf_frame_close(&b->frame);
     free(b);
 }
 
@@ -240,7 +233,7 @@ static void s_work_free(s_work *it)
 
 /* ---- the compute thread ---- */
 
-/* Rebuilds scene, accel, lights and maps from the job's blobs. */
+/* Rebuilds the frame (scene, accel, lights, maps, texels) from the job's blobs. */
 static void s_compute_build(s_work *it)
 {
     const pf_msg_job_t *d = &it->job->desc;
@@ -254,28 +247,11 @@ static void s_compute_build(s_work *it)
     b->maps_hash = d->maps_hash;
     b->settings_hash = pf_settings_hash(&d->settings);
     b->refs = 1;
-    b->scene = pf_sceneblob_read(it->scene_blob->data, it->scene_blob->size, &err);
-    if (!b->scene) {
-        snprintf(it->error, sizeof it->error, "scene blob %016" PRIx64 " rejected: %s", d->scene_hash, err.msg);
+    if (pf_frame_from_blobs(&b->frame, it->scene_blob->data, it->scene_blob->size, d->scene_hash, it->maps_blob->data,
+                            it->maps_blob->size, d->maps_hash, &d->settings, &err) != PF_OK) {
+        snprintf(it->error, sizeof it->error, "%s", err.msg);
         goto fail;
     }
-    b->accel = pf_accel_create(b->scene, &err);
-    if (!b->accel) {
-        snprintf(it->error, sizeof it->error, "cannot build the ray-tracing structure: %s", err.msg);
-        goto fail;
-    }
-    b->lights = pf_lights_build(b->scene);
-    if (!b->lights) {
-        snprintf(it->error, sizeof it->error, "cannot build the light table: out of memory");
-        goto fail;
-    }
-    int rc = pf_mapfile_read(it->maps_blob->data, it->maps_blob->size, d->scene_hash, b->settings_hash, &b->maps, &err);
-    if (rc) {
-        snprintf(it->error, sizeof it->error, "photon-map blob %016" PRIx64 " rejected: %s", d->maps_hash, err.msg);
-        goto fail;
-    }
-    if (pf_photon_maps_index(&b->maps, b->scene, b->accel) != PF_OK)
-        pf_warn("out of memory for the irradiance lookup grid: rendering goes on, slower");
     it->built = b;
     return;
 fail:
@@ -501,7 +477,7 @@ static void s_send_hello(s_worker *w)
     pf_msg_t m;
     memset(&m, 0, sizeof m);
     m.type = PF_MSG_HELLO;
-    m.u.hello.fp = pf_fingerprint_self();
+    m.u.hello.fp = pf_frame_fingerprint();
     if (w->opts->fake_protocol > 0)
         m.u.hello.fp.protocol = (uint16_t)w->opts->fake_protocol;
     m.u.hello.threads = (uint32_t)w->threads;
@@ -688,7 +664,7 @@ static void s_job_ready(s_worker *w, s_job *j, s_built *b)
 {
     b->refs++;
     j->built = b;
-    pf_render_ctx_init(&j->ctx, b->scene, b->accel, b->lights, &b->maps, &j->desc.settings);
+    pf_render_ctx_init(&j->ctx, &b->frame, &j->desc.settings);
     j->ctx.terms = j->desc.terms;
     j->ctx.dropped = &j->dropped;
     j->state = S_JOB_READY;

@@ -1,0 +1,368 @@
+/* light.c: the power-weighted emitter table; see light.h.
+ *
+ * Emitters are sampled by their share of the total power (luminance of the
+ * emitted flux): an area triangle emits pi A lum(Le), a point light
+ * 4 pi lum(I), a spot 2 pi lum(I) times the integral of its falloff. One
+ * table serves direct lighting and photon emission so both see the same
+ * distribution. */
+#include "light/light.h"
+
+#include <float.h>
+#include <stdlib.h>
+
+#include "base/sampling.h"
+
+typedef enum { S_AREA, S_POINT } s_kind;
+
+typedef struct s_entry {
+    s_kind kind;
+    uint32_t mesh, tri; /* area */
+    uint32_t light;     /* point or spot */
+    float area;
+    /* A point light outside the scene's bounding sphere emits photons only
+     * into the cone that holds the sphere (cos_max > -1; axis towards the
+     * centre): the others would leave the scene unseen. */
+    pf_vec3 axis;
+    float cos_max;
+} s_entry;
+
+struct pf_lights {
+    s_entry *entries;
+    double *cdf; /* n + 1 entries, cdf[n] = 1 */
+    size_t n;
+    double power;
+};
+
+float pf_spot_falloff(const pf_light_t *l, float cos_theta)
+{
+    if (cos_theta >= l->cos_inner)
+        return 1.0f;
+    if (cos_theta <= l->cos_outer)
+        return 0.0f;
+    float t = (cos_theta - l->cos_outer) / (l->cos_inner - l->cos_outer);
+    return t * t * (3.0f - 2.0f * t);
+}
+
+static double s_light_power(const pf_light_t *l)
+{
+    double lum = pf_luminance(l->intensity);
+    if (l->type == PF_LIGHT_POINT)
+        return 4.0 * PF_PI * lum;
+    /* Midpoint rule over cos theta in [cos_outer, 1]. */
+    const int steps = 1024;
+    double sum = 0.0, h = (1.0 - l->cos_outer) / steps;
+    for (int i = 0; i < steps; i++)
+        sum += pf_spot_falloff(l, (float)(l->cos_outer + (i + 0.5) * h)) * h;
+    return 2.0 * PF_PI * lum * sum;
+}
+
+/* Points a point light's emission at the scene when it lies outside its
+ * bounding sphere (see s_entry). */
+static void s_aim_at_scene(const pf_scene_t *scene, s_entry *e)
+{
+    const pf_light_t *l = &scene->lights[e->light];
+    if (l->type != PF_LIGHT_POINT)
+        return;
+    pf_vec3 lo, hi;
+    pf_scene_geometry_bounds(scene, &lo, &hi);
+    if (!(lo.x <= hi.x))
+        return; /* no geometry */
+    pf_vec3 c = pf_scale(pf_add(lo, hi), 0.5f), to = pf_sub(c, l->pos);
+    /* Widened for the rounding of the bounds and of the cone's sampling. */
+    float r = 0.5f * pf_len(pf_sub(hi, lo)) * 1.01f + 1e-6f, d = pf_len(to);
+    if (!(d > 1.5f * r) || !isfinite(d))
+        return; /* inside or close: the cone would be most of the sphere anyway */
+    e->axis = pf_scale(to, 1.0f / d);
+    e->cos_max = sqrtf(1.0f - (r / d) * (r / d));
+}
+
+pf_lights_t *pf_lights_build(const pf_scene_t *scene)
+{
+    pf_lights_t *self = calloc(1, sizeof *self);
+    if (!self)
+        return NULL;
+    size_t cap = scene->nlights;
+    for (size_t m = 0; m < scene->nmeshes; m++)
+        for (size_t t = 0; t < scene->meshes[m].ntris; t++)
+            cap += !pf_is_black(scene->mats[scene->meshes[m].mat[t]].le);
+    self->entries = calloc(cap ? cap : 1, sizeof *self->entries);
+    self->cdf = calloc(cap + 1, sizeof *self->cdf);
+    if (!self->entries || !self->cdf) {
+        pf_lights_destroy(&self);
+        return NULL;
+    }
+    double acc = 0.0;
+    for (size_t m = 0; m < scene->nmeshes; m++) {
+        const pf_mesh_t *mesh = &scene->meshes[m];
+        for (size_t t = 0; t < mesh->ntris; t++) {
+            pf_vec3 le = scene->mats[mesh->mat[t]].le;
+            if (pf_is_black(le))
+                continue;
+            const uint32_t *v = &mesh->idx[3 * t];
+            float area = 0.5f * pf_len(pf_cross(pf_sub(mesh->pos[v[1]], mesh->pos[v[0]]),
+                                                pf_sub(mesh->pos[v[2]], mesh->pos[v[0]])));
+            double p = PF_PI * (double)area * pf_luminance(le);
+            if (!(p > 0.0))
+                continue;
+            self->entries[self->n] = (s_entry){ .kind = S_AREA, .mesh = (uint32_t)m, .tri = (uint32_t)t, .area = area };
+            self->cdf[self->n++] = acc;
+            acc += p;
+        }
+    }
+    for (size_t l = 0; l < scene->nlights; l++) {
+        double p = s_light_power(&scene->lights[l]);
+        if (!(p > 0.0))
+            continue;
+        self->entries[self->n] = (s_entry){ .kind = S_POINT, .light = (uint32_t)l, .cos_max = -1.0f };
+        s_aim_at_scene(scene, &self->entries[self->n]);
+        self->cdf[self->n++] = acc;
+        acc += p;
+    }
+    self->power = acc;
+    for (size_t i = 0; i < self->n; i++)
+        self->cdf[i] /= acc;
+    self->cdf[self->n] = 1.0;
+    return self;
+}
+
+void pf_lights_destroy(pf_lights_t **self_p)
+{
+    if (!self_p || !*self_p)
+        return;
+    free((*self_p)->entries);
+    free((*self_p)->cdf);
+    free(*self_p);
+    *self_p = NULL;
+}
+
+double pf_lights_power(const pf_lights_t *self) { return self->power; }
+size_t pf_lights_count(const pf_lights_t *self) { return self->n; }
+
+/* Picks entry i with cdf[i] <= u < cdf[i+1]; *pmf its probability. */
+static size_t s_pick(const pf_lights_t *self, float u, double *pmf)
+{
+    size_t lo = 0, hi = self->n;
+    while (hi - lo > 1) {
+        size_t mid = (lo + hi) / 2;
+        if (self->cdf[mid] <= u)
+            lo = mid;
+        else
+            hi = mid;
+    }
+    *pmf = self->cdf[lo + 1] - self->cdf[lo];
+    return lo;
+}
+
+/* A uniform point on an emissive triangle, its unit face normal and error bound. */
+static void s_tri_point(const pf_scene_t *scene, const s_entry *e, float u1, float u2, pf_vec3 *p, pf_vec3 *n,
+                        pf_vec3 *perr)
+{
+    const pf_mesh_t *mesh = &scene->meshes[e->mesh];
+    const uint32_t *v = &mesh->idx[3 * e->tri];
+    pf_vec3 p0 = mesh->pos[v[0]], p1 = mesh->pos[v[1]], p2 = mesh->pos[v[2]];
+    float b0, b1;
+    pf_sample_triangle(u1, u2, &b0, &b1);
+    float b2 = 1.0f - b0 - b1;
+    *p = pf_add(pf_add(pf_scale(p0, b0), pf_scale(p1, b1)), pf_scale(p2, b2));
+    *n = pf_norm(pf_cross(pf_sub(p1, p0), pf_sub(p2, p0)));
+    if (mesh->nrm) /* as in accel.c: vertex normals orient the face */
+        *n = pf_face_forward(*n, pf_add(pf_add(mesh->nrm[v[0]], mesh->nrm[v[1]]), mesh->nrm[v[2]]));
+    *perr = pf_tri_point_error(p0, p1, p2, b0, b1, b2);
+}
+
+int pf_lights_sample_direct(const pf_lights_t *self, const pf_scene_t *scene, pf_vec3 x, const float u[3],
+                            pf_light_conn_t *out)
+{
+    if (self->n == 0)
+        return 0;
+    double pmf;
+    const s_entry *e = &self->entries[s_pick(self, u[0], &pmf)];
+    if (e->kind == S_AREA) {
+        pf_vec3 p, n, perr;
+        s_tri_point(scene, e, u[1], u[2], &p, &n, &perr);
+        pf_vec3 d = pf_sub(p, x);
+        float d2 = pf_len2(d);
+        if (!(d2 > 0.0f))
+            return 0;
+        float dist = sqrtf(d2);
+        pf_vec3 wi = pf_scale(d, 1.0f / dist);
+        float cos_l = -pf_dot(wi, n);
+        if (cos_l <= 0.0f)
+            return 0; /* one-sided: x is behind the emitter */
+        pf_vec3 le = scene->mats[scene->meshes[e->mesh].mat[e->tri]].le;
+        float pdf_area = (float)pmf / e->area;
+        out->wi = wi;
+        out->dist = dist;
+        out->weight = pf_scale(le, cos_l / (d2 * pdf_area));
+        return 1;
+    }
+    const pf_light_t *l = &scene->lights[e->light];
+    pf_vec3 d = pf_sub(l->pos, x);
+    float d2 = pf_len2(d);
+    if (!(d2 > 0.0f))
+        return 0;
+    float dist = sqrtf(d2);
+    pf_vec3 wi = pf_scale(d, 1.0f / dist);
+    float falloff = l->type == PF_LIGHT_SPOT ? pf_spot_falloff(l, -pf_dot(wi, l->dir)) : 1.0f;
+    if (falloff <= 0.0f)
+        return 0;
+    out->wi = wi;
+    out->dist = dist;
+    out->weight = pf_scale(l->intensity, falloff / (d2 * (float)pmf));
+    return 1;
+}
+
+int pf_lights_emit(const pf_lights_t *self, const pf_scene_t *scene, const float u[5], pf_emission_t *out)
+{
+    if (self->n == 0)
+        return 0;
+    double pmf;
+    const s_entry *e = &self->entries[s_pick(self, u[0], &pmf)];
+    if (e->kind == S_AREA) {
+        pf_vec3 p, n, perr;
+        s_tri_point(scene, e, u[1], u[2], &p, &n, &perr);
+        pf_vec3 local = pf_sample_cosine(u[3], u[4]);
+        pf_vec3 le = scene->mats[scene->meshes[e->mesh].mat[e->tri]].le;
+        /* Le cos / (pdf_area pdf_dir) = Le cos / ((pmf / A) (cos / pi)) = Le A pi / pmf. */
+        out->ray = (pf_ray_t){ p, pf_to_world(local, n) };
+        out->flux = pf_scale(le, PF_PI * e->area / (float)pmf);
+        out->perr = perr;
+        out->n = n;
+        return 1;
+    }
+    const pf_light_t *l = &scene->lights[e->light];
+    out->perr = pf_v3s(0.0f);
+    out->n = pf_v3s(0.0f);
+    if (l->type == PF_LIGHT_POINT && e->cos_max > -1.0f) {
+        /* I / (pdf_dir pmf), pdf_dir = 1 / solid angle of the cone. */
+        out->ray = (pf_ray_t){ l->pos, pf_to_world(pf_sample_cone(u[3], u[4], e->cos_max), e->axis) };
+        out->flux = pf_scale(l->intensity, 2.0f * PF_PI * (1.0f - e->cos_max) / (float)pmf);
+        return 1;
+    }
+    if (l->type == PF_LIGHT_POINT) {
+        out->ray = (pf_ray_t){ l->pos, pf_sample_sphere(u[3], u[4]) };
+        out->flux = pf_scale(l->intensity, 4.0f * PF_PI / (float)pmf);
+        return 1;
+    }
+    pf_vec3 local = pf_sample_cone(u[3], u[4], l->cos_outer);
+    pf_vec3 w = pf_to_world(local, l->dir);
+    float pdf = 1.0f / (2.0f * PF_PI * (1.0f - l->cos_outer));
+    out->ray = (pf_ray_t){ l->pos, w };
+    out->flux = pf_scale(l->intensity, pf_spot_falloff(l, local.z) / (pdf * (float)pmf));
+    return 1;
+}
+
+int pf_specular_targets(const pf_scene_t *scene, pf_target_t **out)
+{
+    *out = NULL;
+    size_t cap = scene->nmeshes + scene->nspheres, n = 0;
+    if (cap == 0)
+        return 0;
+    pf_target_t *t = malloc(cap * sizeof *t);
+    if (!t)
+        return PF_ENOMEM;
+    for (size_t m = 0; m < scene->nmeshes; m++) {
+        const pf_mesh_t *mesh = &scene->meshes[m];
+        pf_vec3 lo = pf_v3s(FLT_MAX), hi = pf_v3s(-FLT_MAX);
+        for (size_t i = 0; i < mesh->ntris; i++) {
+            if (scene->mats[mesh->mat[i]].type == PF_MAT_DIFFUSE)
+                continue;
+            for (int k = 0; k < 3; k++) {
+                lo = pf_vmin(lo, mesh->pos[mesh->idx[3 * i + k]]);
+                hi = pf_vmax(hi, mesh->pos[mesh->idx[3 * i + k]]);
+            }
+        }
+        if (lo.x > hi.x)
+            continue;
+        pf_vec3 c = pf_scale(pf_add(lo, hi), 0.5f);
+        /* Half the box diagonal, widened a little for the rounding above. */
+        t[n++] = (pf_target_t){ c, 0.5f * pf_len(pf_sub(hi, lo)) * 1.001f + 1e-6f };
+    }
+    for (size_t i = 0; i < scene->nspheres; i++) {
+        const pf_sphere_t *sp = &scene->spheres[i];
+        if (scene->mats[sp->mat].type != PF_MAT_DIFFUSE)
+            t[n++] = (pf_target_t){ sp->center, sp->radius * 1.001f };
+    }
+    if (n == 0) {
+        free(t);
+        return 0;
+    }
+    *out = t;
+    return (int)n;
+}
+
+/* The cone from p that holds target t: axis and cos of the half-angle; a
+ * point inside the sphere sees the whole sphere of directions (cos = -1). */
+static void s_cone(pf_vec3 p, const pf_target_t *t, pf_vec3 *axis, float *cos_max, float *solid)
+{
+    pf_vec3 d = pf_sub(t->center, p);
+    float dist2 = pf_len2(d);
+    float r2 = t->radius * t->radius;
+    if (dist2 <= r2) {
+        *axis = pf_v3(0, 0, 1);
+        *cos_max = -1.0f;
+        *solid = 4.0f * PF_PI;
+        return;
+    }
+    float dist = sqrtf(dist2);
+    *axis = pf_scale(d, 1.0f / dist);
+    float sin2 = r2 / dist2;
+    float c = sqrtf(fmaxf(0.0f, 1.0f - sin2));
+    *cos_max = c;
+    /* 1 - cos without cancellation for small cones. */
+    *solid = 2.0f * PF_PI * (sin2 / (1.0f + c));
+}
+
+int pf_lights_emit_targeted(const pf_lights_t *self, const pf_scene_t *scene, const pf_target_t *targets,
+                            size_t ntargets, const float u[6], pf_emission_t *out)
+{
+    if (self->n == 0 || ntargets == 0)
+        return 0;
+    double pmf;
+    const s_entry *e = &self->entries[s_pick(self, u[0], &pmf)];
+    pf_vec3 p, n = pf_v3s(0.0f), perr = pf_v3s(0.0f);
+    const pf_light_t *l = NULL;
+    if (e->kind == S_AREA) {
+        s_tri_point(scene, e, u[1], u[2], &p, &n, &perr);
+    } else {
+        l = &scene->lights[e->light];
+        p = l->pos;
+    }
+    size_t ti = (size_t)(u[3] * (float)ntargets);
+    if (ti >= ntargets)
+        ti = ntargets - 1;
+    pf_vec3 axis;
+    float cos_max, solid;
+    s_cone(p, &targets[ti], &axis, &cos_max, &solid);
+    pf_vec3 w = cos_max <= -1.0f ? pf_sample_sphere(u[4], u[5]) : pf_to_world(pf_sample_cone(u[4], u[5], cos_max), axis);
+    /* Mixture pdf over every target whose cone holds w. */
+    double pdf = 0.0;
+    for (size_t k = 0; k < ntargets; k++) {
+        pf_vec3 ak;
+        float ck, sk;
+        s_cone(p, &targets[k], &ak, &ck, &sk);
+        if (ck <= -1.0f || pf_dot(w, ak) >= ck)
+            pdf += 1.0 / (double)sk;
+    }
+    pdf /= (double)ntargets;
+    if (!(pdf > 0.0))
+        return 0;
+    pf_vec3 radiant; /* emitted radiance x cos (area) or intensity (point, spot) towards w */
+    if (e->kind == S_AREA) {
+        float cos_l = pf_dot(w, n);
+        if (cos_l <= 0.0f)
+            return 0;
+        pf_vec3 le = scene->mats[scene->meshes[e->mesh].mat[e->tri]].le;
+        radiant = pf_scale(le, cos_l * e->area); /* divided by pdf_area = 1 / area */
+    } else {
+        float f = l->type == PF_LIGHT_SPOT ? pf_spot_falloff(l, pf_dot(w, l->dir)) : 1.0f;
+        if (f <= 0.0f)
+            return 0;
+        radiant = pf_scale(l->intensity, f);
+    }
+    out->ray = (pf_ray_t){ p, w };
+    out->flux = pf_scale(radiant, (float)(1.0 / (pdf * pmf)));
+    out->perr = perr;
+    out->n = n;
+    return 1;
+}

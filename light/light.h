@@ -1,0 +1,75 @@
+/* light.h: the scene's emitters in one power-weighted table: every emissive
+ * triangle (one-sided area light along its face normal), point and spot
+ * lights. Used for direct-light sampling (worker) and photon emission
+ * (coordinator). Built once, then read-only from any thread. */
+#ifndef PF_LIGHT_H
+#define PF_LIGHT_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "scene/scene.h"
+#include "base/vec.h"
+
+typedef struct pf_lights pf_lights_t;
+
+/* Builds the table. NULL when out of memory; an empty table (no power) is
+ * valid and samples nothing. */
+pf_lights_t *pf_lights_build(const pf_scene_t *scene);
+void pf_lights_destroy(pf_lights_t **self_p);
+
+/* Total emitted power (W, luminance-weighted) and the number of emitters. */
+double pf_lights_power(const pf_lights_t *self);
+size_t pf_lights_count(const pf_lights_t *self);
+
+/* A sampled light connection from a receiving point. */
+typedef struct pf_light_conn {
+    pf_vec3 wi;      /* unit direction from the receiver to the light point */
+    float dist;      /* distance to the light point */
+    pf_vec3 weight;  /* Le cos_l / (d^2 pdf), i.e. incident radiance over pdf */
+} pf_light_conn_t;
+
+/* Samples one emitter by power and a point on it, as seen from x. Returns 0
+ * when the sample carries nothing (back of a one-sided light, zero distance),
+ * else 1. Uses u[0..2]. */
+int pf_lights_sample_direct(const pf_lights_t *self, const pf_scene_t *scene, pf_vec3 x, const float u[3],
+                            pf_light_conn_t *out);
+
+/* An emitted photon: origin, direction, and flux scaled by the number of
+ * photons (divide by the emitted count). perr bounds the origin's error and
+ * n is the surface normal at the origin (zero for point and spot lights). */
+typedef struct pf_emission {
+    pf_ray_t ray;
+    pf_vec3 flux;
+    pf_vec3 perr;
+    pf_vec3 n;
+} pf_emission_t;
+
+/* Emits a photon: picks an emitter by power, a point and a direction. Uses
+ * u[0..4]. Returns 0 if the table is empty. */
+int pf_lights_emit(const pf_lights_t *self, const pf_scene_t *scene, const float u[5], pf_emission_t *out);
+
+/* A bounding sphere of specular geometry that caustic photons are aimed at. */
+typedef struct pf_target {
+    pf_vec3 center;
+    float radius;
+} pf_target_t;
+
+/* Bounding spheres of the scene's mirror and glass geometry: one per mesh
+ * (over its specular triangles) and one per specular sphere. *out is
+ * malloc'd (NULL when there are none). Returns the count, or PF_ENOMEM. */
+int pf_specular_targets(const pf_scene_t *scene, pf_target_t **out);
+
+/* Emits a photon aimed at the targets: an emitter by power, a point on it,
+ * then a direction uniform in the cone of a target chosen uniformly. The
+ * flux divides by the mixture pdf of all cones containing the direction, so
+ * the estimate is unbiased for every path that reaches a target (and every
+ * specular surface lies inside one). Returns 0 when the sample carries nothing
+ * (direction behind a one-sided emitter). Uses u[0..5]. */
+int pf_lights_emit_targeted(const pf_lights_t *self, const pf_scene_t *scene, const pf_target_t *targets,
+                            size_t ntargets, const float u[6], pf_emission_t *out);
+
+/* Smooth spot falloff: 1 inside cos_inner, 0 outside cos_outer. */
+float pf_spot_falloff(const pf_light_t *l, float cos_theta);
+
+#endif

@@ -1,0 +1,387 @@
+/* mtl.c: reads Wavefront MTL material libraries into pf_material_t records of
+ * a scene. It owns nothing beyond one call: each material is collected from
+ * its statements, mapped once at the next `newmtl` (or the end of the file)
+ * and, when the whole file has parsed, appended to the scene or put in place
+ * of the scene material of the same name.
+ * Called by obj.c for `mtllib` lines and by the scene loaders, on the one
+ * thread that builds the scene. A file with an error adds nothing.
+ *
+ * Mapping from MTL to pf_material_t (also in docs/mtl-mapping.md):
+ *
+ *   illum            type     fields
+ *   ---------------  -------  -----------------------------------------------
+ *   absent, 0, 1, 2  DIFFUSE  kd = Kd. A Phong lobe ks = Ks, ns = Ns when Ks is
+ *   (and 10)                  not black and illum is 2, or illum is absent and
+ *                             Ns is given. If kd + ks exceeds 1 in a channel,
+ *                             both are scaled by 1 / max_c(kd_c + ks_c) (warns)
+ *                             so the surface cannot create energy.
+ *                             `d` < 1 (or `Tr` > 0) is ignored: still opaque.
+ *   3, 8             MIRROR   ks = Ks, or (1,1,1) when Ks is black or absent.
+ *   5                MIRROR   as 3: the Fresnel-weighted reflection of illum 5
+ *                             is approximated by a perfect mirror.
+ *   4, 6, 7, 9       GLASS    ior = Ni (1.5 when absent or 0), ks = Ks or
+ *                             (1,1,1) when black or absent, kt = Tf when given,
+ *                             else (1,1,1). `d` does not change kt.
+ *   other values     DIFFUSE  as illum 2, with a warning.
+ *
+ *   Ke gives le (emitted radiance, one-sided) for every type.
+ *   Defaults when absent: Kd 0.8 (pf_material_default), Ks 0, Ke 0, Ns 1.
+ *   Ignored without a word: Ka, map_*, bump, disp, decal, refl, sharpness.
+ *   Other statements are skipped with one warning per keyword.
+ *
+ * Checks (errors name file:line): every number must parse and be finite.
+ * Kd, Ks and Tf must be >= 0; a channel above 1 is clamped to 1 with a
+ * warning. Ke >= 0 (unbounded). Ns >= 0. Ni >= 0, and Ni 0, which
+ * exporters write for "unset", counts as absent. d and Tr >= 0, clamped to 1
+ * with a warning; Tr means d = 1 - Tr. Colours may give one value (grey) or three; the `spectral` and
+ * `xyz` forms are not supported. A material name longer than 63 bytes is
+ * truncated with a warning (obj.c truncates `usemtl` names the same way). */
+#include "load/load.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+
+#include "base/log.h"
+
+/* One material as written, before mapping. */
+typedef struct s_mtl {
+    char name[PF_NAME_MAX];
+    int line; /* of its newmtl statement */
+    pf_vec3 kd, ks, ke, tf;
+    float ns, ni, d;
+    int has_kd, has_ks, has_ke, has_tf, has_ns, has_ni, has_d;
+    int illum; /* -1 when absent */
+} s_mtl_t;
+
+#define S_MAX_WARNED 32
+
+typedef struct s_ctx {
+    pf_scene_t *scene;
+    const char *path;
+    int line;
+    pf_error_t *err;
+    char warned[S_MAX_WARNED][32];
+    int nwarned;
+    pf_material_t *done; /* mapped materials, committed when the whole file parsed */
+    size_t ndone, cap_done;
+} s_ctx_t;
+
+static int s_is_ws(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\v' || c == '\f'; }
+static int s_is_eol(char c) { return c == '\0' || c == '\n' || c == '#'; }
+static const char *s_skip_ws(const char *p)
+{
+    while (s_is_ws(*p))
+        p++;
+    return p;
+}
+/* Length of the token at p; messages print at most 40 bytes of it. */
+static int s_token_len(const char *p)
+{
+    int n = 0;
+    while (!s_is_ws(p[n]) && !s_is_eol(p[n]))
+        n++;
+    return n;
+}
+static int s_show(const char *p)
+{
+    int n = s_token_len(p);
+    return n < 40 ? n : 40;
+}
+
+/* Parses one float at *pp. Returns 0 and advances, 1 at the end of the
+ * statement, -1 when the token is not a number. */
+static int s_float(const char **pp, float *out)
+{
+    const char *p = s_skip_ws(*pp);
+    *pp = p;
+    if (s_is_eol(*p))
+        return 1;
+    char *end;
+    float v = strtof(p, &end);
+    if (end == p || !(s_is_ws(*end) || s_is_eol(*end)))
+        return -1;
+    *out = v;
+    *pp = end;
+    return 0;
+}
+
+static int s_bad_number(s_ctx_t *c, const char *p)
+{
+    p = s_skip_ws(p);
+    return pf_error_set(c->err, PF_EPARSE, c->path, c->line, "malformed number '%.*s'", s_show(p), p);
+}
+
+/* Rejects anything after the values except a comment. */
+static int s_expect_end(s_ctx_t *c, const char *p, const char *kw)
+{
+    p = s_skip_ws(p);
+    if (s_is_eol(*p))
+        return PF_OK;
+    return pf_error_set(c->err, PF_EPARSE, c->path, c->line, "unexpected '%.*s' after the values of %s",
+                        s_show(p), p, kw);
+}
+
+/* Reads one scalar statement value: finite, >= lo. */
+static int s_scalar(s_ctx_t *c, const char *p, const char *kw, float lo, float *out)
+{
+    int rc = s_float(&p, out);
+    if (rc == 1)
+        return pf_error_set(c->err, PF_EPARSE, c->path, c->line, "%s needs a value", kw);
+    if (rc < 0)
+        return s_bad_number(c, p);
+    if (!isfinite(*out))
+        return pf_error_set(c->err, PF_EPARSE, c->path, c->line, "%s must be finite", kw);
+    if (*out < lo)
+        return pf_error_set(c->err, PF_EPARSE, c->path, c->line, "%s must be >= %g (got %g)", kw, lo, *out);
+    return s_expect_end(c, p, kw);
+}
+
+/* Reads "r [g b]": finite and >= 0; with clamp, channels above 1 become 1. */
+static int s_color(s_ctx_t *c, const char *p, const char *kw, int clamp, pf_vec3 *out)
+{
+    const char *q = s_skip_ws(p);
+    if (strncasecmp(q, "spectral", 8) == 0 || strncasecmp(q, "xyz", 3) == 0)
+        return pf_error_set(c->err, PF_EUNSUPPORTED, c->path, c->line,
+                            "%s: only RGB colours are supported (not '%.*s')", kw, s_show(q), q);
+    float v[3];
+    int n = 0;
+    for (; n < 3; n++) {
+        int rc = s_float(&p, &v[n]);
+        if (rc == 1)
+            break;
+        if (rc < 0)
+            return s_bad_number(c, p);
+    }
+    if (n == 0)
+        return pf_error_set(c->err, PF_EPARSE, c->path, c->line, "%s needs a colour (r g b)", kw);
+    if (n == 2)
+        return pf_error_set(c->err, PF_EPARSE, c->path, c->line, "%s needs one value or three, not two", kw);
+    if (n == 1)
+        v[1] = v[2] = v[0];
+    int rc = s_expect_end(c, p, kw);
+    if (rc)
+        return rc;
+    int clamped = 0;
+    for (int i = 0; i < 3; i++) {
+        if (!isfinite(v[i]))
+            return pf_error_set(c->err, PF_EPARSE, c->path, c->line, "%s must be finite", kw);
+        if (v[i] < 0.0f)
+            return pf_error_set(c->err, PF_EPARSE, c->path, c->line, "%s must not be negative (got %g)", kw, v[i]);
+        if (clamp && v[i] > 1.0f) {
+            v[i] = 1.0f;
+            clamped = 1;
+        }
+    }
+    if (clamped)
+        pf_warn("%s:%d: %s above 1 clamped to 1 (a surface cannot reflect more than it receives)", c->path,
+                c->line, kw);
+    *out = pf_v3(v[0], v[1], v[2]);
+    return PF_OK;
+}
+
+static void s_warn_keyword(s_ctx_t *c, const char *kw, int len)
+{
+    if (len > (int)sizeof c->warned[0] - 1)
+        len = (int)sizeof c->warned[0] - 1;
+    for (int i = 0; i < c->nwarned; i++)
+        if ((int)strlen(c->warned[i]) == len && strncmp(c->warned[i], kw, (size_t)len) == 0)
+            return;
+    if (c->nwarned < S_MAX_WARNED) {
+        snprintf(c->warned[c->nwarned], sizeof c->warned[0], "%.*s", len, kw);
+        c->nwarned++;
+    }
+    pf_warn("%s:%d: ignoring unsupported statement '%.*s' (warned once per keyword)", c->path, c->line, len, kw);
+}
+
+/* Maps a collected material (see the table above) and keeps it for the commit. */
+static int s_finish(s_ctx_t *c, const s_mtl_t *s)
+{
+    pf_material_t m = pf_material_default(s->name);
+    if (s->has_kd)
+        m.kd = s->kd;
+    m.le = s->has_ke ? s->ke : pf_v3s(0.0f);
+    int illum = s->illum;
+    pf_vec3 ones = pf_v3s(1.0f);
+    if (illum == 3 || illum == 5 || illum == 8) {
+        m.type = PF_MAT_MIRROR;
+        m.ks = (s->has_ks && !pf_is_black(s->ks)) ? s->ks : ones;
+    } else if (illum == 4 || illum == 6 || illum == 7 || illum == 9) {
+        m.type = PF_MAT_GLASS;
+        m.ks = (s->has_ks && !pf_is_black(s->ks)) ? s->ks : ones;
+        m.kt = s->has_tf ? s->tf : ones;
+        m.ior = (s->has_ni && s->ni > 0.0f) ? s->ni : 1.5f;
+    } else {
+        if (illum > 10) /* negative values were rejected while parsing */
+            pf_warn("%s:%d: material '%s': unknown illum %d, treated as 2 (diffuse + Phong)", c->path, s->line,
+                    s->name, illum);
+        m.type = PF_MAT_DIFFUSE;
+        int phong = s->has_ks && !pf_is_black(s->ks) && (illum == 2 || illum > 10 || (illum < 0 && s->has_ns));
+        if (phong) {
+            m.ks = s->ks;
+            m.ns = s->has_ns ? s->ns : 1.0f;
+            float mx = pf_maxc(pf_add(m.kd, m.ks));
+            if (mx > 1.0f) {
+                float k = 1.0f / mx;
+                m.kd = pf_scale(m.kd, k);
+                m.ks = pf_scale(m.ks, k);
+                pf_warn("%s:%d: material '%s': Kd + Ks = %g exceeds 1; both scaled by %g to conserve energy",
+                        c->path, s->line, s->name, mx, k);
+            }
+        }
+        if (s->has_d && s->d < 1.0f)
+            pf_warn("%s:%d: material '%s': transparency (d %g) is ignored for illum 0-2; the surface is opaque",
+                    c->path, s->line, s->name, s->d);
+    }
+    if (c->ndone == c->cap_done) {
+        size_t ncap = c->cap_done ? 2 * c->cap_done : 16;
+        pf_material_t *p = realloc(c->done, ncap * sizeof *p);
+        if (!p)
+            return pf_error_set(c->err, PF_ENOMEM, c->path, s->line, "out of memory");
+        c->done = p;
+        c->cap_done = ncap;
+    }
+    c->done[c->ndone++] = m;
+    return PF_OK;
+}
+
+/* Adds the file's materials to the scene, each replacing one of its name. */
+static int s_commit(s_ctx_t *c)
+{
+    for (size_t i = 0; i < c->ndone; i++) {
+        int idx = pf_scene_find_material(c->scene, c->done[i].name);
+        if (idx >= 0)
+            c->scene->mats[idx] = c->done[i];
+        else if (pf_scene_add_material(c->scene, &c->done[i]) < 0)
+            return pf_error_set(c->err, PF_ENOMEM, c->path, 0, "out of memory");
+    }
+    return PF_OK;
+}
+
+/* Handles one statement (keyword kw of length kwlen, values at p). */
+static int s_statement(s_ctx_t *c, s_mtl_t *cur, int *have, const char *kw, int kwlen, const char *p)
+{
+#define S_KW(s) (kwlen == (int)sizeof(s) - 1 && strncasecmp(kw, s, sizeof(s) - 1) == 0)
+    if (S_KW("newmtl")) {
+        if (*have) {
+            int rc = s_finish(c, cur);
+            if (rc)
+                return rc;
+        }
+        p = s_skip_ws(p);
+        size_t n = strcspn(p, "\n#");
+        while (n > 0 && s_is_ws(p[n - 1]))
+            n--;
+        if (n == 0)
+            return pf_error_set(c->err, PF_EPARSE, c->path, c->line, "newmtl needs a name");
+        if (n >= PF_NAME_MAX)
+            pf_warn("%s:%d: material name '%.*s' truncated to %d bytes", c->path, c->line, (int)n, p,
+                    PF_NAME_MAX - 1);
+        memset(cur, 0, sizeof *cur);
+        snprintf(cur->name, sizeof cur->name, "%.*s", (int)n, p);
+        cur->line = c->line;
+        cur->illum = -1;
+        *have = 1;
+        return PF_OK;
+    }
+    if (S_KW("Ka") || (kwlen > 4 && strncasecmp(kw, "map_", 4) == 0) || S_KW("bump") || S_KW("disp") ||
+        S_KW("decal") || S_KW("refl") || S_KW("sharpness"))
+        return PF_OK;
+    int known = S_KW("Kd") || S_KW("Ks") || S_KW("Ke") || S_KW("Tf") || S_KW("Ns") || S_KW("Ni") || S_KW("d") ||
+                S_KW("Tr") || S_KW("illum");
+    if (!known) {
+        s_warn_keyword(c, kw, kwlen);
+        return PF_OK;
+    }
+    char name[8];
+    snprintf(name, sizeof name, "%.*s", kwlen, kw);
+    if (!*have)
+        return pf_error_set(c->err, PF_EPARSE, c->path, c->line, "%s before any newmtl", name);
+    if (S_KW("Kd")) {
+        cur->has_kd = 1;
+        return s_color(c, p, name, 1, &cur->kd);
+    }
+    if (S_KW("Ks")) {
+        cur->has_ks = 1;
+        return s_color(c, p, name, 1, &cur->ks);
+    }
+    if (S_KW("Tf")) {
+        cur->has_tf = 1;
+        return s_color(c, p, name, 1, &cur->tf);
+    }
+    if (S_KW("Ke")) {
+        cur->has_ke = 1;
+        return s_color(c, p, name, 0, &cur->ke);
+    }
+    if (S_KW("Ns")) {
+        cur->has_ns = 1;
+        return s_scalar(c, p, name, 0.0f, &cur->ns);
+    }
+    if (S_KW("Ni")) {
+        int rc = s_scalar(c, p, name, 0.0f, &cur->ni);
+        cur->has_ni = cur->ni > 0.0f; /* Ni 0 means "unset" to many exporters */
+        return rc;
+    }
+    if (S_KW("d") || S_KW("Tr")) {
+        float v;
+        int rc = s_scalar(c, p, name, 0.0f, &v);
+        if (rc)
+            return rc;
+        if (v > 1.0f) {
+            pf_warn("%s:%d: %s %g above 1 clamped to 1", c->path, c->line, name, v);
+            v = 1.0f;
+        }
+        cur->has_d = 1;
+        cur->d = S_KW("d") ? v : 1.0f - v;
+        return PF_OK;
+    }
+    /* illum: a non-negative integer. */
+    p = s_skip_ws(p);
+    char *end;
+    long v = strtol(p, &end, 10);
+    if (end == p || !(s_is_ws(*end) || s_is_eol(*end)) || v < 0 || v > 1000)
+        return pf_error_set(c->err, PF_EPARSE, c->path, c->line, "illum needs an integer in 0..10, not '%.*s'",
+                            s_show(p), p);
+    cur->illum = (int)v;
+    return s_expect_end(c, end, "illum");
+#undef S_KW
+}
+
+int pf_mtl_load(pf_scene_t *scene, const char *path, pf_error_t *err)
+{
+    PF_CHECK(scene && path);
+    FILE *f = fopen(path, "rb");
+    if (!f)
+        return pf_error_set(err, PF_EIO, path, 0, "cannot open material library: %s", strerror(errno));
+    s_ctx_t c = { .scene = scene, .path = path, .err = err };
+    s_mtl_t cur;
+    memset(&cur, 0, sizeof cur);
+    int have = 0, rc = PF_OK;
+    char *line = NULL;
+    size_t cap = 0;
+    while (rc == PF_OK && getline(&line, &cap, f) >= 0) {
+        c.line++;
+        const char *p = s_skip_ws(line);
+        if (s_is_eol(*p))
+            continue;
+        int kwlen = s_token_len(p);
+        rc = s_statement(&c, &cur, &have, p, kwlen, p + kwlen);
+    }
+    /* getline also returns -1 when it cannot grow its buffer (a line too
+     * long for memory, e.g. a device read as a model): only the end of the
+     * file ends the file, anything else is an error, not a truncation. */
+    if (rc == PF_OK && (ferror(f) || !feof(f)))
+        rc = pf_error_set(err, errno == ENOMEM ? PF_ENOMEM : PF_EIO, path, c.line + 1, "read error: %s",
+                          errno == ENOMEM ? "a line too long for memory" : strerror(errno));
+    if (rc == PF_OK && have)
+        rc = s_finish(&c, &cur);
+    if (rc == PF_OK)
+        rc = s_commit(&c); /* nothing reaches the scene from a file with an error */
+    free(c.done);
+    free(line);
+    fclose(f);
+    return rc;
+}

@@ -1,0 +1,64 @@
+/* irradiance.c: precomputed irradiance at a subset of the global photons
+ * (Christensen 1999); see irradiance.h. Runs on the coordinator once per
+ * render, parallel over points with OpenMP; each point's estimate depends only
+ * on the tree, so the result is the same for any thread count. */
+#include "photon/irradiance.h"
+
+#include <omp.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "accel/accel.h"
+#include "photon/photonmap.h"
+
+int pf_irradiance_precompute(const pf_kdtree_t *global, int stride, int k, float max_r2, const pf_accel_t *accel,
+                             int threads, pf_kdtree_t **out)
+{
+    if (stride < 1)
+        stride = 1;
+    if (k > PF_MAX_K)
+        k = PF_MAX_K;
+    size_t n = pf_kdtree_size(global);
+    size_t m = (n + (size_t)stride - 1) / (size_t)stride;
+    pf_photon_t *pts = malloc((m ? m : 1) * sizeof *pts);
+    if (!pts)
+        return PF_ENOMEM;
+    const pf_photon_t *ph = pf_kdtree_photons(global);
+    int failed = 0;
+#pragma omp parallel num_threads(threads)
+    {
+        pf_accel_thread_init();
+        pf_pm_scratch_t *scratch = malloc(sizeof *scratch);
+        /* Points in tree order are near each other: the last estimate's
+         * radius, widened by 1.5, bounds the next search (same results). */
+        float hint = INFINITY;
+        if (!scratch) {
+#pragma omp atomic write
+            failed = 1;
+        }
+#pragma omp for schedule(dynamic, 256)
+        for (size_t i = 0; i < m; i++) {
+            if (!scratch)
+                continue;
+            const pf_photon_t *p = &ph[i * (size_t)stride];
+            pf_vec3 nrm = pf_photon_normal(p);
+            float r2 = 0.0f;
+            pf_vec3 e = pf_pm_irradiance_hint(global, pf_photon_pos(p), nrm, k, max_r2, hint, scratch, &r2);
+            hint = r2 < max_r2 ? fminf(1.44f * r2, max_r2) : max_r2;
+            float r = sqrtf(r2);
+            uint32_t support;
+            memcpy(&support, &r, sizeof support);
+            if (accel && pf_accel_only_plane(accel, pf_photon_pos(p), nrm, PF_IRRADIANCE_FLAT_REACH * r))
+                support |= PF_IRRADIANCE_FLAT_BIT;
+            pts[i] = (pf_photon_t){ { p->pos[0], p->pos[1], p->pos[2] }, { e.x, e.y, e.z }, support, p->normal };
+        }
+        free(scratch);
+    }
+    if (failed) {
+        free(pts);
+        return PF_ENOMEM;
+    }
+    *out = pf_kdtree_build(&pts, m);
+    return *out ? PF_OK : PF_ENOMEM;
+}

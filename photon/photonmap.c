@@ -1,0 +1,321 @@
+/* photonmap.c: density estimates over photon maps; see photonmap.h. Pure
+ * functions of the maps and the query, safe from any thread. Sums run in
+ * double in an order fixed by the map and the query point alone (s_gather),
+ * so results are reproducible bit for bit. */
+#include "photon/photonmap.h"
+
+#include <math.h>
+#include <stddef.h>
+#include <string.h>
+
+#include "material/bsdf.h"
+#include "photon/photon.h"
+#include "base/status.h"
+
+void pf_photon_maps_free(pf_photon_maps_t *maps)
+{
+    if (!maps)
+        return;
+    pf_kdtree_destroy(&maps->global);
+    pf_kdtree_destroy(&maps->caustic);
+    pf_kdtree_destroy(&maps->irradiance);
+    memset(maps, 0, sizeof *maps);
+}
+
+int pf_photon_maps_index(pf_photon_maps_t *maps)
+{
+    return maps->irradiance ? pf_kdtree_index_nearest(maps->irradiance) : PF_OK;
+}
+
+pf_vec3 pf_irradiance_lookup(const pf_kdtree_t *irr, float irr_r2, const pf_accel_t *accel, pf_vec3 p, pf_vec3 nf)
+{
+    pf_knn_t near;
+    if (!irr || !pf_kdtree_nearest_normal(irr, p, nf, PF_NORMAL_AGREE, irr_r2, &near))
+        return pf_v3s(0.0f);
+    const pf_photon_t *q = &pf_kdtree_photons(irr)[near.index];
+    float r = pf_irradiance_radius(q);
+    if (!(near.d2 <= r * r))
+        return pf_v3s(0.0f);
+    float d = sqrtf(near.d2);
+    pf_ray_t ray;
+    float len;
+    if (pf_irradiance_leak_test(q, d, pf_accel_eps(accel)) && pf_irradiance_leak_ray(p, nf, q, d, &ray, &len) &&
+        pf_accel_occluded(accel, &ray, len))
+        return pf_v3s(0.0f);
+    return pf_photon_power(q);
+}
+
+/* An entry as one integer in (d2, index) order, the order of the k nearest: a squared distance is >= 0
+ * (or NaN, never returned by a search), so its bits order as it does. */
+static inline uint64_t s_knn_key(const pf_knn_t *e)
+{
+    uint32_t b;
+    memcpy(&b, &e->d2, sizeof b);
+    return (uint64_t)b << 32 | e->index;
+}
+
+/* The entry of a key (the inverse of s_knn_key). */
+static inline pf_knn_t s_knn_of_key(uint64_t key)
+{
+    uint32_t b = (uint32_t)(key >> 32);
+    pf_knn_t e = { (uint32_t)key, 0.0f };
+    memcpy(&e.d2, &b, sizeof b);
+    return e;
+}
+
+/* The key of rank r (0-based) of keys[0, n), r < n; reorders keys.
+ * Quickselect with a branch-free Lomuto partition (the comparisons' outcomes
+ * are random, so branching on them would mispredict half the time). */
+static uint64_t s_rank(uint64_t *keys, size_t n, size_t r)
+{
+    size_t lo = 0, hi = n; /* the rank lies in [lo, hi) */
+    while (hi - lo > 1) {
+        size_t mid = lo + (hi - lo) / 2;
+        uint64_t t = keys[mid];
+        keys[mid] = keys[hi - 1];
+        keys[hi - 1] = t;
+        size_t store = lo;
+        for (size_t i = lo; i < hi - 1; i++) {
+            uint64_t v = keys[i];
+            int less = v < t;
+            keys[i] = keys[store];
+            keys[store] = v;
+            store += (size_t)less;
+        }
+        keys[hi - 1] = keys[store];
+        keys[store] = t;
+        if (r == store)
+            return t;
+        if (r < store)
+            hi = store;
+        else
+            lo = store + 1;
+    }
+    return keys[lo];
+}
+
+/* Sorts keys[0, n) ascending: quicksort (middle pivot, the smaller side
+ * recursed), insertion sort below 16. */
+static void s_sort_keys(uint64_t *a, size_t n)
+{
+    while (n > 16) {
+        uint64_t piv = a[n / 2];
+        size_t i = 0, j = n - 1;
+        for (;;) {
+            while (a[i] < piv)
+                i++;
+            while (a[j] > piv)
+                j--;
+            if (i >= j)
+                break;
+            uint64_t t = a[i];
+            a[i] = a[j];
+            a[j] = t;
+            i++;
+            j--;
+        }
+        /* a[0, j] <= piv <= a[j + 1, n) (keys are unique) */
+        size_t left = j + 1;
+        if (left < n - left) {
+            s_sort_keys(a, left);
+            a += left;
+            n -= left;
+        } else {
+            s_sort_keys(a + left, n - left);
+            n = left;
+        }
+    }
+    for (size_t i = 1; i < n; i++) {
+        uint64_t v = a[i];
+        size_t j = i;
+        for (; j > 0 && a[j - 1] > v; j--)
+            a[j] = a[j - 1];
+        a[j] = v;
+    }
+}
+
+/* Puts found[0, n) in tree-index order (indices are unique). */
+static void s_sort_by_index(pf_knn_t *found, size_t n, uint64_t *keys)
+{
+    for (size_t i = 0; i < n; i++) {
+        uint32_t bits;
+        memcpy(&bits, &found[i].d2, sizeof bits);
+        keys[i] = (uint64_t)found[i].index << 32 | bits;
+    }
+    s_sort_keys(keys, n);
+    for (size_t i = 0; i < n; i++) {
+        uint32_t bits = (uint32_t)keys[i];
+        found[i].index = (uint32_t)(keys[i] >> 32);
+        memcpy(&found[i].d2, &bits, sizeof bits);
+    }
+}
+
+/* Keeps, in place and in order, the entries of a[0, n) with keys below
+ * kth's. */
+static size_t s_keep_before(pf_knn_t *a, size_t n, uint64_t kth)
+{
+    size_t m = 0;
+    for (size_t i = 0; i < n; i++) {
+        pf_knn_t e = a[i];
+        a[m] = e;
+        m += (size_t)(s_knn_key(&e) < kth);
+    }
+    return m;
+}
+
+/* The photons of an estimate: the k - 1 nearest to x (the k-th only marks
+ * the radius, *r2: for photons of density lambda, E[(k - 1) / (pi r_k^2)] =
+ * lambda, while counting all k overestimates by k / (k - 1), 1 % at k = 100,
+ * which the furnace shows), or all within max_r2 (*r2 = max_r2) when fewer
+ * than k lie there, or for k = 1 the nearest over max_r2; returns how many,
+ * in scratch->found.
+ *
+ * They come in the radius search's order (a pre-order walk of the tree,
+ * nearer child first), which does not depend on the radius searched: a larger
+ * one only adds subtrees; or, when fewer than k lie within max_r2 (which no
+ * hint can change), in tree order. So the sums over them, and the estimates,
+ * are the same bits whatever the hint (or a thread's previous query) was.
+ *
+ * With a hint (a guess at the k-th photon's squared distance, from a nearby
+ * estimate) the photons within it are collected and the k-th picked by
+ * selection, cheaper than keeping a heap; when the hint holds fewer than k
+ * (or too many to keep) the k-th is found by a heap search without it, and
+ * the photons before it collected within its distance. */
+static size_t s_gather(const pf_kdtree_t *map, pf_vec3 x, int k, float max_r2, float hint_r2, pf_pm_scratch_t *scratch,
+                       float *r2)
+{
+    *r2 = max_r2;
+    if (!map || pf_kdtree_size(map) == 0 || k <= 0)
+        return 0;
+    if (k > PF_MAX_K)
+        k = PF_MAX_K;
+    const size_t cap = PF_PM_FOUND, kk = (size_t)k;
+    pf_knn_t *found = scratch->found;
+    uint64_t kth;
+    size_t c = 0;
+    /* A hint of max_r2 itself says the last estimate found fewer than k:
+     * one radius search then finds them all, cheaper than a heap search. */
+    int whole = hint_r2 == max_r2 && isfinite(max_r2);
+    if (hint_r2 < max_r2 || whole)
+        c = pf_kdtree_radius_upto(map, x, hint_r2, found, cap);
+    if (whole && c < kk) {
+        s_sort_by_index(found, c, scratch->keys); /* as the heap path below returns them */
+        return c;
+    }
+    if (c >= kk && c <= cap) {
+        for (size_t i = 0; i < c; i++)
+            scratch->keys[i] = s_knn_key(&found[i]);
+        kth = s_rank(scratch->keys, c, kk - 1);
+        if (kk == 1) {
+            /* k = 1: the nearest photon, over the max_r2 disc (a radius
+             * marked by the only photon would leave none to sum). */
+            found[0] = s_knn_of_key(kth);
+            return 1;
+        }
+    } else {
+        size_t n = pf_kdtree_knn_heap(map, x, kk, max_r2, found);
+        if (n < kk) {
+            /* All of them (none within a hint can have found k): in tree
+             * order, which is canonical too and cheaper than a walk. */
+            s_sort_by_index(found, n, scratch->keys);
+            return n;
+        }
+        if (kk == 1)
+            return 1; /* the nearest, in found[0]; over max_r2 as above */
+        kth = s_knn_key(&found[0]); /* the heap's root: the k-th */
+        float kth_d2 = found[0].d2;
+        c = pf_kdtree_radius_upto(map, x, kth_d2, found, cap);
+        if (c > cap) {
+            /* More than cap photons at the k-th's very distance (coincident
+             * photons): the heap's own k - 1, in its order. */
+            pf_kdtree_knn_heap(map, x, kk, max_r2, found);
+            found[0] = found[kk - 1];
+            *r2 = kth_d2;
+            return kk - 1;
+        }
+    }
+    *r2 = s_knn_of_key(kth).d2;
+    size_t m = s_keep_before(found, c, kth);
+    PF_DCHECK(m == kk - 1);
+    return m;
+}
+
+pf_vec3 pf_pm_irradiance(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int k, float max_r2, pf_pm_scratch_t *scratch,
+                         float *r2_out)
+{
+    return pf_pm_irradiance_hint(map, x, n, k, max_r2, INFINITY, scratch, r2_out);
+}
+
+pf_vec3 pf_pm_irradiance_hint(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int k, float max_r2, float hint_r2,
+                              pf_pm_scratch_t *scratch, float *r2_out)
+{
+    float r2 = max_r2;
+    size_t cnt = s_gather(map, x, k, max_r2, hint_r2, scratch, &r2);
+    if (r2_out)
+        *r2_out = r2;
+    if (cnt == 0 || !(r2 > 0.0f))
+        return pf_v3s(0.0f);
+    const pf_photon_t *ph = pf_kdtree_photons(map);
+    double s[3] = { 0, 0, 0 };
+    for (size_t i = 0; i < cnt; i++) {
+        const pf_photon_t *p = &ph[scratch->found[i].index];
+        if (!pf_photon_normal_agrees(p, n, PF_NORMAL_AGREE))
+            continue;
+        s[0] += p->power[0];
+        s[1] += p->power[1];
+        s[2] += p->power[2];
+    }
+    double inv = 1.0 / (PF_PI * (double)r2);
+    return pf_v3((float)(s[0] * inv), (float)(s[1] * inv), (float)(s[2] * inv));
+}
+
+pf_vec3 pf_pm_irradiance_cone(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int k, float max_r2, float hint_r2,
+                              pf_pm_scratch_t *scratch, float *r2_out)
+{
+    float r2 = max_r2;
+    size_t cnt = s_gather(map, x, k, max_r2, hint_r2, scratch, &r2);
+    if (r2_out)
+        *r2_out = r2;
+    if (cnt == 0 || !(r2 > 0.0f))
+        return pf_v3s(0.0f);
+    const pf_photon_t *ph = pf_kdtree_photons(map);
+    double r = sqrt((double)r2);
+    double s[3] = { 0, 0, 0 };
+    for (size_t i = 0; i < cnt; i++) {
+        const pf_photon_t *p = &ph[scratch->found[i].index];
+        if (!pf_photon_normal_agrees(p, n, PF_NORMAL_AGREE))
+            continue;
+        double w = 1.0 - sqrt((double)scratch->found[i].d2) / r;
+        if (w <= 0.0)
+            continue;
+        s[0] += w * p->power[0];
+        s[1] += w * p->power[1];
+        s[2] += w * p->power[2];
+    }
+    /* The cone of height 1 over the disc holds pi r^2 / 3; normalize to the disc. */
+    double inv = 3.0 / (PF_PI * (double)r2);
+    return pf_v3((float)(s[0] * inv), (float)(s[1] * inv), (float)(s[2] * inv));
+}
+
+pf_vec3 pf_pm_radiance(const pf_kdtree_t *map, const struct pf_material *m, pf_vec3 x, pf_vec3 n, pf_vec3 wo, int k,
+                       float max_r2, pf_pm_scratch_t *scratch)
+{
+    float r2 = 0.0f;
+    size_t cnt = s_gather(map, x, k, max_r2, INFINITY, scratch, &r2);
+    if (cnt == 0 || !(r2 > 0.0f))
+        return pf_v3s(0.0f);
+    const pf_photon_t *ph = pf_kdtree_photons(map);
+    double s[3] = { 0, 0, 0 };
+    for (size_t i = 0; i < cnt; i++) {
+        const pf_photon_t *p = &ph[scratch->found[i].index];
+        if (!pf_photon_normal_agrees(p, n, PF_NORMAL_AGREE))
+            continue;
+        pf_vec3 wi = pf_neg(pf_oct_decode(p->dir));
+        pf_vec3 f = pf_brdf_eval(m, n, wi, wo);
+        s[0] += f.x * p->power[0];
+        s[1] += f.y * p->power[1];
+        s[2] += f.z * p->power[2];
+    }
+    double inv = 1.0 / (PF_PI * (double)r2);
+    return pf_v3((float)(s[0] * inv), (float)(s[1] * inv), (float)(s[2] * inv));
+}

@@ -1,0 +1,141 @@
+/* photonmap.h: the photon maps one render uses, as the coordinator builds
+ * them and a worker receives them: the global map, the caustic map and the
+ * precomputed-irradiance map (Christensen 1999), each a pointer-free kd-tree,
+ * with the parameters their estimates need. Owned as a unit. */
+#ifndef PF_PHOTONMAP_H
+#define PF_PHOTONMAP_H
+
+#include <stdint.h>
+#include <string.h>
+
+#include "accel/accel.h"
+#include "photon/kdtree.h"
+
+typedef struct pf_photon_maps {
+    pf_kdtree_t *global;      /* photons on non-specular surfaces, any path; flux already divided by emitted count */
+    pf_kdtree_t *caustic;     /* photons of L S+ D paths */
+    pf_kdtree_t *irradiance;  /* irradiance (in power[]) at a subset of global photons */
+    uint64_t global_emitted, caustic_emitted;
+    float global_r2;          /* max squared search radius of global estimates */
+    float caustic_r2;         /* max squared search radius of caustic estimates */
+    float irradiance_r2;      /* max squared distance to an irradiance point */
+} pf_photon_maps_t;
+
+/* Readies the maps for rendering: builds the irradiance tree's
+ * nearest-point grid (pf_kdtree_index_nearest), which makes direct lookups
+ * several times faster without changing a result. 0 or PF_ENOMEM (the maps
+ * stay usable, only slower). The render's frame (render/frame.h) calls it,
+ * then builds the irradiance texels (irrtex.h) over the maps. */
+int pf_photon_maps_index(pf_photon_maps_t *maps);
+
+/* Frees the trees; NULL-safe; leaves the struct zeroed. */
+void pf_photon_maps_free(pf_photon_maps_t *maps);
+
+/* Photons whose stored normal has a cosine below this with the query normal
+ * lie on another surface (or the other side) and are left out of estimates. */
+#define PF_NORMAL_AGREE 0.7f
+/* Most photons one estimate may gather. */
+#define PF_MAX_K 1024
+/* The working memory every estimate below takes (one per thread): the
+ * photons within a search radius, and their keys to select the k-th among. */
+#define PF_PM_FOUND (2 * PF_MAX_K)
+typedef struct pf_pm_scratch {
+    pf_knn_t found[PF_PM_FOUND];
+    uint64_t keys[PF_PM_FOUND];
+} pf_pm_scratch_t;
+
+/* Irradiance (W/m^2) at x on the surface with unit normal n: the flux of the
+ * k - 1 nearest photons whose normals agree, over the disc pi r^2, r the
+ * distance to the k-th photon (unbiased for a uniform density); when fewer
+ * than k lie within max_r2, all of them over pi max_r2.
+ * k <= PF_MAX_K (more is taken as PF_MAX_K). The photons are summed in an order that depends only on the
+ * map and x, so the estimate does too, bit for bit. */
+pf_vec3 pf_pm_irradiance(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int k, float max_r2, pf_pm_scratch_t *scratch,
+                         float *r2_out);
+
+/* The same estimate, searched first within hint_r2 (a guess at the k-th
+ * photon's squared distance, from a nearby estimate): the same result as
+ * pf_pm_irradiance, bit for bit, faster when the guess holds k photons (and
+ * not many times more), a second search when it does not. A hint of max_r2
+ * itself (finite) guesses that fewer than k photons lie within it, as when
+ * the nearby estimate found fewer: one radius search then finds them all.
+ * A hint above max_r2 (INFINITY): none. */
+pf_vec3 pf_pm_irradiance_hint(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int k, float max_r2, float hint_r2,
+                              pf_pm_scratch_t *scratch, float *r2_out);
+
+/* The radius of the disc an irradiance point's estimate averaged over (its
+ * support), kept in the point's otherwise unused direction field; the sign
+ * bit there is the point's flat flag (pf_irradiance_flat). */
+#define PF_IRRADIANCE_FLAT_BIT 0x80000000u
+static inline float pf_irradiance_radius(const pf_photon_t *p)
+{
+    uint32_t u = p->dir & ~PF_IRRADIANCE_FLAT_BIT;
+    float r;
+    memcpy(&r, &u, sizeof r);
+    return r;
+}
+
+/* Set when no surface but the point's own plane comes within
+ * PF_IRRADIANCE_FLAT_REACH times its support radius (pf_accel_only_plane,
+ * at precompute time). A lookup p within the support of such a point q lies
+ * on that plane, and the leak test's ray, from p and q both lifted by their
+ * distance d, runs inside that ball above the plane: it can hit nothing once
+ * d clears the plane's tolerance (pf_irradiance_leak_test). */
+#define PF_IRRADIANCE_FLAT_REACH 1.5f
+static inline int pf_irradiance_flat(const pf_photon_t *p) { return (p->dir & PF_IRRADIANCE_FLAT_BIT) != 0; }
+
+/* Whether a lookup at distance d from irradiance point q needs the leak
+ * test's visibility ray (eps: pf_accel_eps). Not when d is within eps (no
+ * wall fits between), nor when q is flat and d lifts the ray above what the
+ * plane's tolerance allows: eps for the plane through q, eps and the tilt
+ * over the radius for p's triangle, the tilt over the reach for any other
+ * triangle of the plane (3 eps + 2.5 tilt r), with a margin. */
+static inline int pf_irradiance_leak_test(const pf_photon_t *q, float d, float eps)
+{
+    if (!(d > eps))
+        return 0;
+    return !(pf_irradiance_flat(q) && d > 4.0f * eps + 3.0f * PF_ACCEL_PLANE_TILT * pf_irradiance_radius(q));
+}
+
+/* The leak test's ray for a lookup at p (face normal nf, towards the viewer)
+ * answered by q at distance d: from p to q, both lifted by d along nf; the
+ * lookup reads q's irradiance only when this segment (of length *len) hits
+ * nothing. 0 when p and q coincide once lifted (nothing to trace). */
+static inline int pf_irradiance_leak_ray(pf_vec3 p, pf_vec3 nf, const pf_photon_t *q, float d, pf_ray_t *ray,
+                                         float *len)
+{
+    pf_vec3 a = pf_madd(p, nf, d), b = pf_madd(pf_photon_pos(q), nf, d);
+    pf_vec3 ab = pf_sub(b, a);
+    *len = pf_len(ab);
+    if (!(*len > 0.0f))
+        return 0;
+    *ray = (pf_ray_t){ a, pf_scale(ab, 1.0f / *len) };
+    return 1;
+}
+
+/* Irradiance at p (face normal nf, towards the viewer) from the
+ * precomputed points irr (squared reach irr_r2): that of the nearest point q
+ * with an agreeing normal, if p lies within q's support (the disc its
+ * estimate averaged over) and q is visible from p (the leak test's ray,
+ * where q is not flat); zero otherwise, since then no photon landed near p
+ * on its side of any wall. Without the visibility test the final gather
+ * reads light through walls (the stress suite's thin wall and closed
+ * crate). Safe from any thread once irr is indexed or not. */
+pf_vec3 pf_irradiance_lookup(const pf_kdtree_t *irr, float irr_r2, const pf_accel_t *accel, pf_vec3 p, pf_vec3 nf);
+
+/* The same with a cone filter (Jensen 2001, 7.2.2, k = 1): weight
+ * 1 - d / r, normalized by 1 - 2 / 3 over the disc, which sharpens caustics.
+ * The squared radius the estimate used goes to *r2_out unless NULL; hint_r2
+ * as in pf_pm_irradiance_hint. */
+pf_vec3 pf_pm_irradiance_cone(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int k, float max_r2, float hint_r2,
+                              pf_pm_scratch_t *scratch, float *r2_out);
+
+/* Reflected radiance towards wo at x for a DIFFUSE material with a Phong
+ * lobe, from the photons' directions (Jensen's original estimate): sum of
+ * f(wi_p, wo) flux_p / (pi r^2). Used where precomputed irradiance cannot
+ * represent the reflection (glossy surfaces). */
+struct pf_material;
+pf_vec3 pf_pm_radiance(const pf_kdtree_t *map, const struct pf_material *m, pf_vec3 x, pf_vec3 n, pf_vec3 wo, int k,
+                       float max_r2, pf_pm_scratch_t *scratch);
+
+#endif

@@ -1,0 +1,870 @@
+/* render.c: the integrator: radiance along camera rays from direct light,
+ * mirror and glass recursion, the caustic map and a final gather over the
+ * precomputed irradiance (Jensen 2001, ch. 9; Christensen 1999), which the
+ * gather reads through the surface's irradiance texels (photon/irrtex.h)
+ * where the maps are indexed.
+ *
+ * Parameters (pf_settings_t; defaults in scene.c):
+ *   spp            36   camera samples per pixel, stratified kx x ky (box filter)
+ *   light_samples  2    shadow rays per camera sample at a non-specular point
+ *   gather         1    final-gather rays per camera sample at a diffuse point, scaled by
+ *                       the path's throughput (at least 1) below specular splits;
+ *                       many camera samples with few gather rays each beat the
+ *                       reverse at equal cost (the light's edges alias otherwise)
+ *   gather_filter  2    the first gather of a camera path (through mirrors) is
+ *                       shared over (2n+1)^2 pixels on the same surface (see
+ *                       "Filtering the first gather" below)
+ *   max_depth      16   mirror/glass recursion depth of camera paths
+ *   caustic_k      80   photons per caustic estimate, cone filter, radius <= caustic_radius
+ *   global_k       100  photons per irradiance estimate (precomputed at every
+ *                       irradiance_stride-th global photon)
+ *
+ * Path classes (Heckbert notation, read from the light L to the eye E; S is
+ * a mirror or glass bounce, D a diffuse or glossy one, x the first
+ * non-specular vertex seen from the eye):
+ *
+ *   term        paths                  how
+ *   emitted     L S* E                 Le added when a camera path (through
+ *                                      mirrors/glass only) hits an emitter's front
+ *   direct      L D S* E  (D = x)      light sampling at x; emitters are never
+ *                                      counted when a camera path reaches them
+ *                                      from x's own BSDF sampling
+ *   caustic     L S+ D S* E            caustic map at x (diffuse part of x)
+ *   indirect    L (S|D)* D S* D S* E   final gather from x: each gather ray
+ *                                      follows mirrors/glass to the first
+ *                                      non-specular y and takes the global
+ *                                      map's radiance there (precomputed
+ *                                      irradiance x kd/pi), which stands for
+ *                                      every path that ends at y; emitters the
+ *                                      gather ray reaches directly (L D E:
+ *                                      direct) or through S+ (L S+ D E:
+ *                                      caustic) are not counted
+ *   glossy      L ... S* G S* E        a glossy x samples its Phong lobe with one
+ *                                      recursive ray; emitters that ray reaches
+ *                                      directly are left to direct light, those it
+ *                                      reaches through S+ are counted (the caustic
+ *                                      map serves only x's diffuse part)
+ *
+ * Every path from a light to the eye falls in exactly one row: the classes are
+ * split by the first non-specular vertex from the eye (none: emitted; x) and
+ * by what lies between x and the light (nothing: direct; only S: caustic;
+ * a non-specular vertex: indirect).
+ *
+ * Threads: pf_render_tile is re-entrant; pf_render_image runs tiles over
+ * OpenMP, each thread with FTZ/DAZ set. */
+#include "render/render.h"
+
+#include <omp.h>
+#include <stdatomic.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "material/bsdf.h"
+#include "photon/irrtex.h"
+#include "base/log.h"
+#include "base/rng.h"
+
+/* The camera samples of one pixel reach nearly the same points, and the
+ * caustic estimate is a blur of radius r (its k-th photon's distance), so an
+ * estimate is reused for a point closer than S_CAUSTIC_REUSE * r to the one
+ * it was made at, on a surface facing the same way. Kept per pixel (reset at
+ * each), so the image stays a function of the pixel alone. */
+#define S_CAUSTIC_REUSE 0.25f
+
+#define S_FILTER_COS 0.95f
+#define S_FILTER_REACH 3.0f
+enum { S_MAX_CLUSTERS = 4 };
+
+typedef struct s_cluster {
+    pf_vec3 p, n;   /* its first sample's hit point and (camera-facing) normal */
+    pf_vec3 gsum;   /* the sum of its samples' first gathers */
+    float foot;     /* a pixel's width at p */
+    int count;
+} s_cluster;
+
+typedef struct s_pixel_rec {
+    int nc;
+    s_cluster c[S_MAX_CLUSTERS];
+} s_pixel_rec;
+
+/* Whether q (normal m) lies on the surface of a cluster's point p (normal n)
+ * within reach pixel widths. */
+static int s_same_surface(const s_cluster *c, pf_vec3 q, pf_vec3 m, float reach)
+{
+    if (pf_dot(c->n, m) < S_FILTER_COS)
+        return 0;
+    pf_vec3 d = pf_sub(q, c->p);
+    float r = reach * c->foot;
+    return fabsf(pf_dot(d, c->n)) <= c->foot && pf_dot(d, d) <= r * r;
+}
+
+/* Per-thread state for one pixel sample. */
+typedef struct s_state {
+    const pf_render_ctx_t *ctx;
+    pf_rng_t rng;
+    int caustic_valid;
+    pf_vec3 caustic_p, caustic_n, caustic_e;
+    float caustic_reach2;
+    float caustic_hint; /* the last caustic estimate's squared radius, widened: bounds the next search */
+    /* The filtered first gather (pf_render_tile): when filtering, the gather
+     * at the end of a camera ray's primary path takes the filtered gather of
+     * the first of the pixel's surfaces (rec) it lies on, else gathers with
+     * the sample's own gather stream. */
+    int filtering;
+    const s_pixel_rec *rec;
+    pf_vec3 gf[S_MAX_CLUSTERS];
+    uint64_t pixel;
+    uint32_t sample;
+    pf_pm_scratch_t scratch;
+} s_state;
+
+/* Caustic irradiance at p (surface normal nf), reusing the pixel's last
+ * estimate when it was made close enough. */
+static pf_vec3 s_caustic(s_state *st, pf_vec3 p, pf_vec3 nf)
+{
+    if (st->caustic_valid && pf_dot(nf, st->caustic_n) > 0.999f &&
+        pf_dot(pf_sub(p, st->caustic_p), pf_sub(p, st->caustic_p)) < st->caustic_reach2)
+        return st->caustic_e;
+    const pf_render_ctx_t *c = st->ctx;
+    float r2 = 0.0f;
+    pf_vec3 e = pf_pm_irradiance_cone(c->maps->caustic, p, nf, c->settings.caustic_k, c->maps->caustic_r2,
+                                      st->caustic_hint, &st->scratch, &r2);
+    st->caustic_hint = r2 < c->maps->caustic_r2 ? fminf(2.25f * r2, c->maps->caustic_r2) : c->maps->caustic_r2;
+    st->caustic_valid = 1;
+    st->caustic_p = p;
+    st->caustic_n = nf;
+    st->caustic_e = e;
+    st->caustic_reach2 = S_CAUSTIC_REUSE * S_CAUSTIC_REUSE * r2;
+    return e;
+}
+
+static inline float s_u(s_state *st) { return pf_rng_float(&st->rng); }
+
+/* Shadow test between a hit and the light point at distance dist along wi.
+ * The ray leaves from the offset origin aimed at the light point itself (the
+ * offset moves the origin off the line from the hit point), and stops short
+ * of it by more than that point's rounding, so the emitter never occludes
+ * itself, at any scale or distance from the origin. */
+static int s_visible(const pf_accel_t *accel, const pf_hit_t *h, pf_vec3 wi, float dist)
+{
+    pf_vec3 target = pf_madd(h->p, wi, dist);
+    pf_ray_t r = pf_spawn_ray(h, wi);
+    pf_vec3 d = pf_sub(target, r.o);
+    float len = pf_len(d);
+    if (!(len > 0.0f))
+        return 1;
+    r.d = pf_scale(d, 1.0f / len);
+    float slack = 0x1p-18f * pf_maxc(pf_vabs(target)) + pf_accel_eps(accel) + 1e-4f * len;
+    return len <= slack || !pf_accel_occluded(accel, &r, len - slack);
+}
+
+/* Direct light at a non-specular hit: light_samples shadow rays. */
+static pf_vec3 s_direct(s_state *st, const pf_hit_t *h, const pf_material_t *m, pf_vec3 nf, pf_vec3 ns, pf_vec3 wo)
+{
+    const pf_render_ctx_t *c = st->ctx;
+    int n = c->settings.light_samples > 0 ? c->settings.light_samples : 1;
+    pf_vec3 sum = pf_v3s(0.0f);
+    for (int i = 0; i < n; i++) {
+        float u[3] = { s_u(st), s_u(st), s_u(st) };
+        pf_light_conn_t lc;
+        if (!pf_lights_sample_direct(c->lights, c->scene, h->p, u, &lc))
+            continue;
+        float cos_x = pf_dot(lc.wi, ns);
+        if (cos_x <= 0.0f || pf_dot(lc.wi, nf) <= 0.0f)
+            continue;
+        pf_vec3 f = pf_brdf_eval(m, ns, lc.wi, wo);
+        if (pf_is_black(f) || !s_visible(c->accel, h, lc.wi, lc.dist))
+            continue;
+        sum = pf_add(sum, pf_scale(pf_mul(f, lc.weight), cos_x));
+    }
+    return pf_scale(sum, 1.0f / (float)n);
+}
+
+/* Where a gather ray ends: its radiance, or, at a diffuse surface read
+ * through the irradiance lookup, that lookup still to make (its texel's
+ * cache line asked for where it has one; s_gather_end_value makes it): the
+ * radiance is then thr * kd * E / pi, E the texel's irradiance (or the
+ * direct lookup's, without a texel or where the texel sends its hits there). */
+typedef struct s_gather_end {
+    pf_vec3 value; /* unless lookup */
+    int lookup;    /* the radiance is thr * kd * E / pi, E looked up at h */
+    size_t texel;  /* h's texel, or PF_IRRTEX_NONE: the direct lookup */
+    pf_hit_t h;
+    pf_vec3 nf, thr, kd;
+} s_gather_end;
+
+/* Traces a final-gather ray to its end: mirrors and glass on the way are
+ * followed (one branch chosen by Fresnel); at the first non-specular surface
+ * the radiance it leaves towards the ray's origin, from the global map
+ * (emission not counted). */
+static void s_gather_trace(s_state *st, pf_ray_t ray, s_gather_end *end)
+{
+    const pf_render_ctx_t *c = st->ctx;
+    end->value = pf_v3s(0.0f);
+    end->lookup = 0;
+    end->texel = PF_IRRTEX_NONE;
+    pf_vec3 thr = pf_v3s(1.0f);
+    for (int depth = 0; depth < c->settings.max_depth; depth++) {
+        pf_hit_t h;
+        if (!pf_accel_intersect(c->accel, &ray, INFINITY, &h))
+            return;
+        const pf_material_t *m = &c->scene->mats[h.mat];
+        pf_vec3 wo = pf_neg(ray.d);
+        pf_vec3 nf = pf_face_forward(h.ng, wo);
+        pf_vec3 ns = pf_dot(h.ng, nf) > 0.0f ? h.ns : pf_neg(h.ns);
+        if (m->type == PF_MAT_DIFFUSE) {
+            if (!pf_mat_nonspecular(m))
+                return;
+            if (pf_mat_glossy(m)) {
+                pf_vec3 l = pf_pm_radiance(c->maps->global, m, h.p, nf, wo, c->settings.global_k,
+                                           c->maps->global_r2, &st->scratch);
+                end->value = pf_mul(thr, l);
+                return;
+            }
+            end->texel = c->texels ? pf_irrtex_find(c->texels, &h, nf) : PF_IRRTEX_NONE;
+            end->lookup = 1;
+            end->h = h;
+            end->nf = nf;
+            end->thr = thr;
+            end->kd = m->kd;
+            return;
+        }
+        pf_vec3 wi;
+        if (m->type == PF_MAT_MIRROR) {
+            thr = pf_mul(thr, m->ks);
+            wi = pf_reflect(wo, ns);
+        } else {
+            int entering = pf_dot(ray.d, h.ng) < 0.0f;
+            float eta_i = entering ? 1.0f : m->ior, eta_t = entering ? m->ior : 1.0f;
+            float f = pf_fresnel_dielectric(pf_dot(wo, ns), eta_i, eta_t);
+            if (s_u(st) < f || !pf_refract(wo, ns, eta_i / eta_t, &wi)) {
+                wi = pf_reflect(wo, ns);
+                thr = pf_mul(thr, m->ks);
+            } else {
+                /* Radiance scales by (eta_i / eta_t)^2 across the interface, seen from the receiving side. */
+                float s = eta_i / eta_t;
+                thr = pf_mul(thr, pf_scale(m->kt, s * s));
+            }
+        }
+        if (pf_is_black(thr)) {
+            end->value = thr;
+            return;
+        }
+        ray = pf_spawn_ray(&h, wi);
+    }
+}
+
+/* A gather ray's radiance, making its irradiance lookup if it waits on one
+ * (the texel's answer, or the direct lookup without a texel or where the
+ * texel sends it there). */
+static pf_vec3 s_gather_end_value(const s_state *st, const s_gather_end *end)
+{
+    if (!end->lookup)
+        return end->value;
+    const pf_photon_maps_t *pm = st->ctx->maps;
+    pf_vec3 e;
+    if (end->texel == PF_IRRTEX_NONE || !pf_irrtex_read(st->ctx->texels, end->texel, &end->h, end->nf, &e))
+        e = pf_irradiance_lookup(pm->irradiance, pm->irradiance_r2, st->ctx->accel, end->h.p, end->nf);
+    return pf_mul(end->thr, pf_scale(pf_mul(end->kd, e), PF_INV_PI));
+}
+
+/* Gather reads put off (s_gather_sum): a few texel reads, each with the
+ * sum it adds to, made together once the traces around them are done. */
+enum { S_DEFER_MAX = 16 };
+typedef struct s_defer {
+    int n;
+    s_gather_end end[S_DEFER_MAX];
+    pf_vec3 *sum[S_DEFER_MAX];
+} s_defer;
+
+/* Adds a gather ray's radiance to *sum; with d, when the ray waits on a
+ * texel read, the read is left in d (while there is room) to be added later
+ * by s_defer_flush. */
+static void s_gather_add(s_state *st, pf_ray_t ray, s_defer *d, pf_vec3 *sum)
+{
+    int defer = d && d->n < S_DEFER_MAX && !st->ctx->reads_at_once;
+    s_gather_end now, *end = defer ? &d->end[d->n] : &now;
+    s_gather_trace(st, ray, end);
+    if (defer && end->texel != PF_IRRTEX_NONE)
+        d->sum[d->n++] = sum;
+    else
+        *sum = pf_add(*sum, s_gather_end_value(st, end));
+}
+
+/* Makes the reads put off, each adding to its sum, in the order they came. */
+static void s_defer_flush(const s_state *st, s_defer *d)
+{
+    for (int i = 0; i < d->n; i++)
+        *d->sum[i] = pf_add(*d->sum[i], s_gather_end_value(st, &d->end[i]));
+    d->n = 0;
+}
+
+/* The final gather at a diffuse hit: adds to *sum the radiances of n
+ * cosine-distributed gather rays (their mean times kd is the reflected
+ * radiance: f cos / pdf = kd), each as s_gather_add. */
+static void s_gather_sum(s_state *st, const pf_hit_t *h, pf_vec3 nf, pf_vec3 ns, int n, s_defer *d, pf_vec3 *sum)
+{
+    for (int i = 0; i < n; i++) {
+        pf_vec3 wi = pf_to_world(pf_sample_cosine(s_u(st), s_u(st)), ns);
+        if (pf_dot(wi, nf) > 0.0f)
+            s_gather_add(st, pf_spawn_ray(h, wi), d, sum);
+    }
+}
+
+static pf_vec3 s_gather_mean(s_state *st, const pf_hit_t *h, pf_vec3 nf, pf_vec3 ns, int n)
+{
+    pf_vec3 sum = pf_v3s(0.0f);
+    s_gather_sum(st, h, nf, ns, n, NULL, &sum);
+    return pf_scale(sum, 1.0f / (float)n);
+}
+
+/* The first gather of a camera sample (depth 0), from its own random stream
+ * so that any tile can compute it for any pixel (pf_render_tile's records):
+ * its rays' radiances added to *sum, as s_gather_sum (d included). */
+static void s_first_gather_sum(s_state *st, const pf_hit_t *h, pf_vec3 nf, pf_vec3 ns, s_defer *d, pf_vec3 *sum)
+{
+    pf_rng_t pixel_rng = st->rng;
+    st->rng = pf_rng_make(st->ctx->settings.seed, PF_STREAM_GATHER, st->pixel, st->sample);
+    s_gather_sum(st, h, nf, ns, st->ctx->settings.gather, d, sum);
+    st->rng = pixel_rng;
+}
+
+/* The first gather of a camera sample as the render pass takes it: the
+ * filtered gather of the pixel's surface it lies on, else its own. */
+static pf_vec3 s_first_gather(s_state *st, const pf_hit_t *h, pf_vec3 nf, pf_vec3 ns)
+{
+    /* The surfaces are tried in the order they were found, as the records
+     * assigned each sample to the first that took it (or to none of the
+     * S_MAX_CLUSTERS), so this is the surface the sample's gather went to. */
+    for (int k = 0; st->rec && k < st->rec->nc; k++)
+        if (s_same_surface(&st->rec->c[k], h->p, nf, S_FILTER_REACH))
+            return st->gf[k];
+    pf_vec3 sum = pf_v3s(0.0f);
+    s_first_gather_sum(st, h, nf, ns, NULL, &sum);
+    return pf_scale(sum, 1.0f / (float)st->ctx->settings.gather);
+}
+
+/* Glass paths of the camera split into both branches above this depth. */
+#define S_GLASS_SPLIT_DEPTH 2
+
+/* A glass interface met along direction d (geometric normal ng, wo = -d,
+ * ns the shading normal on wo's side): its Fresnel reflectance, whether it
+ * refracts, both directions and the transmission weight (kt scaled by the
+ * radiance's (eta_i / eta_t)^2 across the interface). */
+typedef struct s_glass {
+    float f;
+    int can_refract;
+    pf_vec3 wr, wt, kt;
+} s_glass;
+
+static s_glass s_glass_at(const pf_material_t *m, pf_vec3 d, pf_vec3 ng, pf_vec3 wo, pf_vec3 ns)
+{
+    s_glass g;
+    int entering = pf_dot(d, ng) < 0.0f;
+    float eta_i = entering ? 1.0f : m->ior, eta_t = entering ? m->ior : 1.0f;
+    g.f = pf_fresnel_dielectric(pf_dot(wo, ns), eta_i, eta_t);
+    g.wt = pf_v3s(0.0f);
+    g.can_refract = g.f < 1.0f && pf_refract(wo, ns, eta_i / eta_t, &g.wt);
+    float s = eta_i / eta_t;
+    g.kt = pf_scale(m->kt, s * s);
+    g.wr = pf_reflect(wo, ns);
+    return g;
+}
+
+/* Radiance along a camera path. thr is the path's throughput so far (to size
+ * the final gather below dim specular branches); count_le says whether an
+ * emitter hit here counts (see the table above); primary, whether the path
+ * has met only mirrors so far (its first gather may be filtered). */
+static pf_vec3 s_radiance(s_state *st, pf_ray_t ray, int depth, pf_vec3 thr, int count_le, int primary)
+{
+    const pf_render_ctx_t *c = st->ctx;
+    pf_hit_t h;
+    if (!pf_accel_intersect(c->accel, &ray, INFINITY, &h))
+        return pf_v3s(0.0f);
+    const pf_material_t *m = &c->scene->mats[h.mat];
+    pf_vec3 wo = pf_neg(ray.d);
+    pf_vec3 nf = pf_face_forward(h.ng, wo);
+    pf_vec3 ns = pf_dot(h.ng, nf) > 0.0f ? h.ns : pf_neg(h.ns);
+    pf_vec3 L = pf_v3s(0.0f);
+    if (count_le && (c->terms & PF_TERM_EMITTED) && !pf_is_black(m->le) && pf_dot(ray.d, h.ng) < 0.0f)
+        L = m->le;
+
+    if (m->type == PF_MAT_DIFFUSE) {
+        if (!pf_mat_nonspecular(m))
+            return L;
+        if (c->terms & PF_TERM_PHOTONMAP) {
+            /* The global map's own estimate (the debugging view), not the
+             * precomputed points, which a scene without indirect light lacks. */
+            pf_vec3 e = pf_pm_irradiance(c->maps->global, h.p, nf, c->settings.global_k, c->maps->global_r2,
+                                         &st->scratch, NULL);
+            return pf_add(L, pf_scale(pf_mul(m->kd, e), PF_INV_PI));
+        }
+        if (c->terms & PF_TERM_DIRECT)
+            L = pf_add(L, s_direct(st, &h, m, nf, ns, wo));
+        if (!pf_is_black(m->kd)) {
+            if (c->terms & PF_TERM_CAUSTIC) {
+                pf_vec3 e = s_caustic(st, h.p, nf);
+                L = pf_add(L, pf_scale(pf_mul(m->kd, e), PF_INV_PI));
+            }
+            if (c->terms & PF_TERM_INDIRECT) {
+                float w = fminf(1.0f, pf_maxc(thr));
+                int n = (int)ceilf((float)c->settings.gather * w);
+                if (primary && st->filtering)
+                    L = pf_add(L, pf_mul(m->kd, s_first_gather(st, &h, nf, ns)));
+                else if (n > 0)
+                    L = pf_add(L, pf_mul(m->kd, s_gather_mean(st, &h, nf, ns, n)));
+            }
+        }
+        if (pf_mat_glossy(m) && depth < c->settings.max_depth) {
+            pf_vec3 r = pf_reflect(wo, ns);
+            pf_vec3 wi = pf_to_world(pf_sample_phong(s_u(st), s_u(st), m->ns), r);
+            float cos_i = pf_dot(wi, ns);
+            if (cos_i > 0.0f && pf_dot(wi, nf) > 0.0f) {
+                pf_vec3 wgt = pf_scale(m->ks, (m->ns + 2.0f) / (m->ns + 1.0f) * cos_i);
+                pf_vec3 li = s_radiance(st, pf_spawn_ray(&h, wi), depth + 1, pf_mul(thr, wgt), 0, 0);
+                L = pf_add(L, pf_mul(wgt, li));
+            }
+        }
+        return L;
+    }
+    if (depth >= c->settings.max_depth)
+        return L;
+    if (m->type == PF_MAT_MIRROR) {
+        pf_vec3 wi = pf_reflect(wo, ns);
+        return pf_add(L, pf_mul(m->ks, s_radiance(st, pf_spawn_ray(&h, wi), depth + 1, pf_mul(thr, m->ks), 1, primary)));
+    }
+    /* Glass: both branches near the eye, where their noise would show; one
+     * chosen by Fresnel deeper down. The refracted branch near the eye (or
+     * the reflection alone under total internal reflection) goes on as the
+     * primary path; s_primary_hit follows the same choice. */
+    s_glass g = s_glass_at(m, ray.d, h.ng, wo, ns);
+    float f = g.f;
+    pf_vec3 wt = g.wt, wr = g.wr, kt = g.kt;
+    if (!g.can_refract)
+        return pf_add(L, pf_mul(m->ks, s_radiance(st, pf_spawn_ray(&h, wr), depth + 1, pf_mul(thr, m->ks), 1,
+                                                  primary)));
+    if (depth < S_GLASS_SPLIT_DEPTH) {
+        pf_vec3 kr = pf_scale(m->ks, f), ktt = pf_scale(kt, 1.0f - f);
+        pf_vec3 lr = s_radiance(st, pf_spawn_ray(&h, wr), depth + 1, pf_mul(thr, kr), 1, 0);
+        pf_vec3 lt = s_radiance(st, pf_spawn_ray(&h, wt), depth + 1, pf_mul(thr, ktt), 1, primary);
+        return pf_add(L, pf_add(pf_mul(kr, lr), pf_mul(ktt, lt)));
+    }
+    if (s_u(st) < f)
+        return pf_add(L, pf_mul(m->ks, s_radiance(st, pf_spawn_ray(&h, wr), depth + 1, pf_mul(thr, m->ks), 1, 0)));
+    return pf_add(L, pf_mul(kt, s_radiance(st, pf_spawn_ray(&h, wt), depth + 1, pf_mul(thr, kt), 1, 0)));
+}
+
+pf_vec3 pf_render_gather_rays(const pf_render_ctx_t *ctx, const pf_ray_t *rays, size_t n, uint64_t sample)
+{
+    s_state st;
+    st.ctx = ctx;
+    st.rng = pf_rng_make(ctx->settings.seed, PF_STREAM_PIXEL, sample, 0);
+    st.caustic_valid = 0;
+    st.caustic_hint = INFINITY;
+    st.filtering = 0;
+    st.rec = NULL;
+    s_defer d;
+    d.n = 0;
+    pf_vec3 sum = pf_v3s(0.0f);
+    for (size_t i = 0; i < n; i++) {
+        if (d.n == S_DEFER_MAX)
+            s_defer_flush(&st, &d);
+        s_gather_add(&st, rays[i], &d, &sum);
+    }
+    s_defer_flush(&st, &d);
+    return sum;
+}
+
+void pf_render_ctx_init(pf_render_ctx_t *ctx, const pf_frame_t *frame, const pf_settings_t *settings)
+{
+    memset(ctx, 0, sizeof *ctx);
+    ctx->scene = frame->scene;
+    ctx->accel = frame->accel;
+    ctx->lights = frame->lights;
+    ctx->maps = &frame->maps;
+    ctx->texels = frame->texels;
+    ctx->settings = *settings;
+    ctx->camera = pf_camera_make(&frame->scene->camera, settings->width, settings->height);
+    ctx->terms = PF_TERM_ALL;
+}
+
+/* Filtering the first gather.
+ *
+ * The indirect term is smooth where the surface is, so the gathers of a
+ * pixel's neighbours estimate it as well as its own: every camera sample
+ * whose primary path (through mirrors, and glass refracting near the eye;
+ * s_primary_hit) ends on a diffuse surface takes the mean of the gathers
+ * there of all samples in the (2R+1) x (2R+1) pixels around its pixel that
+ * lie on the same surface (normals within S_FILTER_COS, within a pixel's
+ * width of its tangent plane and S_FILTER_REACH * (R + 1) pixel widths of
+ * it; the width measured by tracing the paths one pixel over, s_footprint),
+ * R = settings.gather_filter. Samples of one pixel are grouped into at most
+ * S_MAX_CLUSTERS such surfaces; a sample fitting none keeps its own gather.
+ * Only this gather is shared: direct light, caustics and the other branches
+ * stay per sample, and their gathers are not filtered.
+ *
+ * A first gather draws from its own stream (seed, gather, pixel, sample), so
+ * a tile computes its neighbours' records exactly as their own tiles do: the
+ * image still depends on the pixel alone, never on the tiling. The border of
+ * R pixels costs one camera ray and one gather per sample (about 13 % more
+ * gathers for 32-pixel tiles at R = 1). */
+/* The tile's sampling pattern: jitter stratified on a kx x ky grid,
+ * kx = floor(sqrt(spp)) and ky = floor(spp / kx) (edges against the bright
+ * light dominate the error otherwise); the few samples beyond kx * ky are
+ * uniform. A square spp fills a k x k grid. */
+typedef struct s_pattern {
+    int spp, kx, ky, strata;
+} s_pattern;
+
+static s_pattern s_pattern_make(int spp)
+{
+    s_pattern pt = { spp > 0 ? spp : 1, 0, 0, 0 };
+    int kx = (int)sqrt((double)pt.spp);
+    while ((kx + 1) * (kx + 1) <= pt.spp)
+        kx++;
+    while (kx * kx > pt.spp)
+        kx--;
+    pt.kx = kx;
+    pt.ky = pt.spp / kx;
+    pt.strata = pt.kx * pt.ky;
+    return pt;
+}
+
+/* Camera sample s of pixel (px, py): starts the sample's pixel stream in st
+ * and returns its ray, through film position (*fx, *fy). */
+static pf_ray_t s_camera_sample(s_state *st, const s_pattern *pt, int px, int py, int s, float *fx, float *fy)
+{
+    const pf_render_ctx_t *ctx = st->ctx;
+    st->pixel = (uint64_t)py * (uint64_t)ctx->camera.width + (uint64_t)px;
+    st->sample = (uint32_t)s;
+    st->rng = pf_rng_make(ctx->settings.seed, PF_STREAM_PIXEL, st->pixel, (uint32_t)s);
+    float jx = s_u(st), jy = s_u(st);
+    if (s < pt->strata) {
+        jx = ((float)(s % pt->kx) + jx) / (float)pt->kx;
+        jy = ((float)(s / pt->kx) + jy) / (float)pt->ky;
+    }
+    *fx = (float)px + jx;
+    *fy = (float)py + jy;
+    return pf_camera_ray(&ctx->camera, *fx, *fy);
+}
+
+/* The end of a camera ray's primary path as s_radiance follows it (mirrors,
+ * glass refracting near the eye or reflecting totally) when that is a
+ * diffuse surface the final gather serves: the material, with the hit in *h,
+ * its camera-facing normals in *nf and *ns, and the path's length in *length;
+ * NULL otherwise. */
+static const pf_material_t *s_primary_hit(const pf_render_ctx_t *c, pf_ray_t ray, pf_hit_t *h, pf_vec3 *nf,
+                                          pf_vec3 *ns, float *length)
+{
+    *length = 0.0f;
+    for (int depth = 0; pf_accel_intersect(c->accel, &ray, INFINITY, h); depth++) {
+        const pf_material_t *m = &c->scene->mats[h->mat];
+        *length += h->t;
+        pf_vec3 wo = pf_neg(ray.d);
+        *nf = pf_face_forward(h->ng, wo);
+        *ns = pf_dot(h->ng, *nf) > 0.0f ? h->ns : pf_neg(h->ns);
+        if (m->type == PF_MAT_DIFFUSE)
+            return pf_mat_nonspecular(m) && !pf_is_black(m->kd) ? m : NULL;
+        if (depth >= c->settings.max_depth)
+            return NULL;
+        pf_vec3 wi = pf_reflect(wo, *ns);
+        if (m->type != PF_MAT_MIRROR) {
+            s_glass g = s_glass_at(m, ray.d, h->ng, wo, *ns);
+            if (g.can_refract && depth >= S_GLASS_SPLIT_DEPTH)
+                return NULL; /* a random branch from here on */
+            if (g.can_refract)
+                wi = g.wt;
+        }
+        ray = pf_spawn_ray(h, wi);
+    }
+    return NULL;
+}
+
+/* A pixel's width at the end of a primary path through film position
+ * (fx, fy) ending at p (normal nf): the distance to where the paths one
+ * pixel to the right and one down end on the same surface (mirrors and glass
+ * spread them far beyond the path's length times the pixel's angle), at
+ * least that length times the angle and at most S_FOOT_MAX times it. */
+#define S_FOOT_MAX 32.0f
+static float s_footprint(const pf_render_ctx_t *c, float fx, float fy, pf_vec3 p, pf_vec3 nf, float length)
+{
+    float base = length * 2.0f * c->camera.tan_half_v / (float)c->camera.height;
+    float foot = base;
+    for (int k = 0; k < 2; k++) {
+        pf_ray_t ray = pf_camera_ray(&c->camera, fx + (k == 0 ? 1.0f : 0.0f), fy + (k == 1 ? 1.0f : 0.0f));
+        pf_hit_t h;
+        pf_vec3 n2, ns2;
+        float len2;
+        if (!s_primary_hit(c, ray, &h, &n2, &ns2, &len2) || pf_dot(n2, nf) < S_FILTER_COS)
+            continue;
+        foot = fmaxf(foot, pf_len(pf_sub(h.p, p)));
+    }
+    return fminf(foot, S_FOOT_MAX * base);
+}
+
+/* Makes the texel reads d holds and adds the nb samples' gathers (sums) to
+ * their surfaces' (owner) in rec. Returns 0, the samples left. */
+static int s_record_flush(const s_state *st, s_defer *d, const pf_vec3 *sums, const int *owner, int nb,
+                          s_pixel_rec *rec)
+{
+    s_defer_flush(st, d);
+    for (int i = 0; i < nb; i++) {
+        s_cluster *cl = &rec->c[owner[i]];
+        cl->gsum = pf_add(cl->gsum, pf_scale(sums[i], 1.0f / (float)st->ctx->settings.gather));
+        cl->count++;
+    }
+    return 0;
+}
+
+/* The first-gather records of pixel (px, py): its samples' surfaces and
+ * the sums of their gathers. The gathers' texel reads wait while the next
+ * samples are traced (s_defer; up to S_DEFER_MAX samples at a time), so
+ * their trips from memory overlap the traces; each sample's gather still
+ * reaches its surface's sum in sample order. */
+static void s_record_pixel(s_state *st, const s_pattern *pt, int px, int py, s_pixel_rec *rec)
+{
+    const pf_render_ctx_t *c = st->ctx;
+    rec->nc = 0;
+    s_defer d;
+    d.n = 0;
+    pf_vec3 sums[S_DEFER_MAX];
+    int owner[S_DEFER_MAX], nb = 0;
+    for (int s = 0; s < pt->spp; s++) {
+        float fx, fy;
+        pf_ray_t ray = s_camera_sample(st, pt, px, py, s, &fx, &fy);
+        pf_hit_t h;
+        pf_vec3 nf, ns;
+        float length;
+        if (!s_primary_hit(c, ray, &h, &nf, &ns, &length))
+            continue;
+        int k = 0;
+        while (k < rec->nc && !s_same_surface(&rec->c[k], h.p, nf, S_FILTER_REACH))
+            k++;
+        if (k == S_MAX_CLUSTERS)
+            continue; /* gathers for itself in the render pass */
+        if (k == rec->nc)
+            rec->c[rec->nc++] = (s_cluster){ h.p, nf, pf_v3s(0.0f), s_footprint(c, fx, fy, h.p, nf, length), 0 };
+        sums[nb] = pf_v3s(0.0f);
+        owner[nb] = k;
+        s_first_gather_sum(st, &h, nf, ns, &d, &sums[nb++]);
+        if (nb == S_DEFER_MAX || c->reads_at_once)
+            nb = s_record_flush(st, &d, sums, owner, nb, rec);
+    }
+    s_record_flush(st, &d, sums, owner, nb, rec);
+}
+
+/* A tile in the making: its first-gather records (none when not filtering). */
+struct pf_tile_plan {
+    const pf_render_ctx_t *ctx;
+    s_pattern pt;
+    int x0, y0, w, h;
+    int R, filter;
+    int rx0, ry0, rw, rh; /* the records' rectangle: the tile and its border, clipped to the image */
+    s_pixel_rec *recs;
+    atomic_int *done;     /* per record row: recorded */
+    omp_lock_t *locks;    /* per record row: held while it is recorded */
+};
+
+static s_state *s_state_new(const pf_render_ctx_t *ctx, int filtering)
+{
+    s_state *st = malloc(sizeof *st);
+    PF_CHECK(st != NULL);
+    st->ctx = ctx;
+    st->filtering = filtering;
+    st->rec = NULL;
+    st->caustic_valid = 0;
+    st->caustic_hint = INFINITY;
+    return st;
+}
+
+pf_tile_plan_t *pf_tile_plan_new(const pf_render_ctx_t *ctx, int x0, int y0, int w, int h)
+{
+    pf_tile_plan_t *p = calloc(1, sizeof *p);
+    PF_CHECK(p != NULL);
+    p->ctx = ctx;
+    p->pt = s_pattern_make(ctx->settings.spp);
+    p->x0 = x0, p->y0 = y0, p->w = w, p->h = h;
+    p->R = ctx->settings.gather_filter;
+    p->filter = p->R > 0 && ctx->settings.gather > 0 && (ctx->terms & PF_TERM_INDIRECT) &&
+                !(ctx->terms & PF_TERM_PHOTONMAP);
+    if (p->filter) {
+        int R = p->R;
+        p->rx0 = x0 - R > 0 ? x0 - R : 0;
+        p->ry0 = y0 - R > 0 ? y0 - R : 0;
+        int rx1 = x0 + w + R < ctx->camera.width ? x0 + w + R : ctx->camera.width;
+        int ry1 = y0 + h + R < ctx->camera.height ? y0 + h + R : ctx->camera.height;
+        p->rw = rx1 - p->rx0;
+        p->rh = ry1 - p->ry0;
+        p->recs = malloc((size_t)p->rw * (size_t)p->rh * sizeof *p->recs);
+        p->done = malloc((size_t)p->rh * sizeof *p->done);
+        p->locks = malloc((size_t)p->rh * sizeof *p->locks);
+        PF_CHECK(p->recs != NULL && p->done != NULL && p->locks != NULL);
+        for (int r = 0; r < p->rh; r++) {
+            atomic_init(&p->done[r], 0);
+            omp_init_lock(&p->locks[r]);
+        }
+    }
+    return p;
+}
+
+int pf_tile_plan_record_rows(const pf_tile_plan_t *p) { return p->filter ? p->rh : 0; }
+
+static void s_record_row(pf_tile_plan_t *p, int row);
+
+void pf_tile_plan_record_row(pf_tile_plan_t *p, int row)
+{
+    if (atomic_load_explicit(&p->done[row], memory_order_acquire))
+        return;
+    omp_set_lock(&p->locks[row]);
+    if (!atomic_load_explicit(&p->done[row], memory_order_relaxed)) {
+        s_record_row(p, row);
+        atomic_store_explicit(&p->done[row], 1, memory_order_release);
+    }
+    omp_unset_lock(&p->locks[row]);
+}
+
+static void s_record_row(pf_tile_plan_t *p, int row)
+{
+    s_state *st = s_state_new(p->ctx, 0);
+    for (int x = 0; x < p->rw; x++) {
+        size_t i = (size_t)row * (size_t)p->rw + (size_t)x;
+        s_record_pixel(st, &p->pt, p->rx0 + x, p->ry0 + row, &p->recs[i]);
+    }
+    free(st);
+}
+
+/* The filtered first gather of each of pixel (px, py)'s surfaces: the mean
+ * over the neighbourhood's samples on it. */
+static void s_filtered_gathers(const pf_tile_plan_t *p, int px, int py, pf_vec3 gf[S_MAX_CLUSTERS])
+{
+    int R = p->R;
+    const s_pixel_rec *rec = &p->recs[(size_t)(py - p->ry0) * (size_t)p->rw + (size_t)(px - p->rx0)];
+    for (int k = 0; k < rec->nc; k++) {
+        const s_cluster *own = &rec->c[k];
+        pf_vec3 sum = pf_v3s(0.0f);
+        int count = 0;
+        for (int qy = py - R; qy <= py + R; qy++) {
+            if (qy < p->ry0 || qy >= p->ry0 + p->rh)
+                continue;
+            for (int qx = px - R; qx <= px + R; qx++) {
+                if (qx < p->rx0 || qx >= p->rx0 + p->rw)
+                    continue;
+                const s_pixel_rec *q = &p->recs[(size_t)(qy - p->ry0) * (size_t)p->rw + (size_t)(qx - p->rx0)];
+                for (int j = 0; j < q->nc; j++)
+                    if (s_same_surface(own, q->c[j].p, q->c[j].n, S_FILTER_REACH * (float)(R + 1))) {
+                        sum = pf_add(sum, q->c[j].gsum);
+                        count += q->c[j].count;
+                    }
+            }
+        }
+        gf[k] = pf_scale(sum, 1.0f / (float)count);
+    }
+}
+
+void pf_tile_plan_render_row(pf_tile_plan_t *p, int row, float *out)
+{
+    const pf_render_ctx_t *ctx = p->ctx;
+    if (p->filter) {
+        /* the record rows this row's filter reads: R above to R below */
+        int first = p->y0 + row - p->R - p->ry0, last = p->y0 + row + p->R - p->ry0;
+        for (int r = first > 0 ? first : 0; r <= last && r < p->rh; r++)
+            pf_tile_plan_record_row(p, r);
+    }
+    s_state *st = s_state_new(ctx, p->filter);
+    int py = p->y0 + row;
+    for (int x = 0; x < p->w; x++) {
+        int px = p->x0 + x;
+        if (p->filter) {
+            st->rec = &p->recs[(size_t)(py - p->ry0) * (size_t)p->rw + (size_t)(px - p->rx0)];
+            s_filtered_gathers(p, px, py, st->gf);
+        }
+        double acc[3] = { 0, 0, 0 };
+        st->caustic_valid = 0;
+        for (int s = 0; s < p->pt.spp; s++) {
+            float fx, fy;
+            pf_ray_t ray = s_camera_sample(st, &p->pt, px, py, s, &fx, &fy);
+            pf_vec3 L = s_radiance(st, ray, 0, pf_v3s(1.0f), 1, 1);
+            if (!pf_is_finite3(L) || L.x < 0.0f || L.y < 0.0f || L.z < 0.0f) {
+                /* never let a NaN or negative sample reach the image, but say so */
+                if (ctx->dropped)
+                    __atomic_fetch_add(ctx->dropped, 1, __ATOMIC_RELAXED);
+                continue;
+            }
+            acc[0] += L.x;
+            acc[1] += L.y;
+            acc[2] += L.z;
+        }
+        float *o = &out[3 * (size_t)x];
+        for (int k = 0; k < 3; k++)
+            o[k] = (float)(acc[k] / p->pt.spp);
+    }
+    free(st);
+}
+
+void pf_tile_plan_free(pf_tile_plan_t *p)
+{
+    if (!p)
+        return;
+    if (p->locks)
+        for (int r = 0; r < p->rh; r++)
+            omp_destroy_lock(&p->locks[r]);
+    free(p->locks);
+    free((void *)p->done);
+    free(p->recs);
+    free(p);
+}
+
+void pf_render_tile(const pf_render_ctx_t *ctx, int x0, int y0, int w, int h, float *out)
+{
+    pf_render_tile_cost(ctx, x0, y0, w, h, out, NULL);
+}
+
+void pf_render_tile_cost(const pf_render_ctx_t *ctx, int x0, int y0, int w, int h, float *out, pf_tile_cost_t *cost)
+{
+    double t0 = cost ? pf_now() : 0.0;
+    pf_tile_plan_t *p = pf_tile_plan_new(ctx, x0, y0, w, h);
+    for (int row = 0; row < pf_tile_plan_record_rows(p); row++)
+        pf_tile_plan_record_row(p, row);
+    double t1 = cost ? pf_now() : 0.0;
+    for (int row = 0; row < h; row++)
+        pf_tile_plan_render_row(p, row, out + 3 * (size_t)row * (size_t)w);
+    if (cost) {
+        double t2 = pf_now();
+        cost->record_s += t1 - t0;
+        cost->render_s += t2 - t1;
+        cost->record_samples += (uint64_t)p->rw * (uint64_t)p->rh * (uint64_t)p->pt.spp;
+        cost->samples += (uint64_t)w * (uint64_t)h * (uint64_t)p->pt.spp;
+    }
+    pf_tile_plan_free(p);
+}
+
+void pf_render_image(const pf_render_ctx_t *ctx, pf_image_t *img, int threads, int tile, pf_progress_fn progress,
+                     void *user)
+{
+    int W = img->width, H = img->height;
+    int tx = (W + tile - 1) / tile, ty = (H + tile - 1) / tile, total = tx * ty;
+    int done = 0;
+#pragma omp parallel num_threads(threads)
+    {
+        pf_accel_thread_init();
+        float *buf = malloc((size_t)tile * (size_t)tile * 3 * sizeof *buf);
+        PF_CHECK(buf != NULL);
+#pragma omp for schedule(dynamic, 1)
+        for (int t = 0; t < total; t++) {
+            int x0 = (t % tx) * tile, y0 = (t / tx) * tile;
+            int w = x0 + tile <= W ? tile : W - x0, h = y0 + tile <= H ? tile : H - y0;
+            pf_render_tile(ctx, x0, y0, w, h, buf);
+            for (int y = 0; y < h; y++)
+                memcpy(&img->rgb[3 * ((size_t)(y0 + y) * (size_t)W + (size_t)x0)], &buf[3 * (size_t)y * (size_t)w],
+                       (size_t)w * 3 * sizeof(float));
+            int d;
+#pragma omp atomic capture
+            d = ++done;
+            if (progress && omp_get_thread_num() == 0)
+                progress(user, d, total);
+        }
+        free(buf);
+    }
+    if (progress)
+        progress(user, total, total);
+}

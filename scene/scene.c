@@ -1,0 +1,318 @@
+/* scene.c: the scene model's builder verbs and validation (the loaders
+ * that fill it are in load/). Single-threaded: scenes are built once, then
+ * read by every rendering thread without locks. */
+#include "scene/scene.h"
+
+#include <float.h>
+#include <stdlib.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "base/log.h"
+#include "base/reserve.h"
+
+pf_settings_t pf_settings_default(void)
+{
+    return (pf_settings_t){
+        .width = 512,
+        .height = 512,
+        .spp = 36,
+        .photons = 400000,
+        .caustic_photons = 400000,
+        .gather = 1,
+        .gather_filter = 2,
+        .light_samples = 2,
+        .max_depth = 16,
+        .photon_max_depth = 1000,
+        .global_k = 100,
+        .caustic_k = 80,
+        .caustic_radius = 0.0f,
+        .global_radius = 0.0f,
+        .irradiance_stride = 4,
+        .threads = 0,
+        .seed = 1,
+        .exposure = 0.0f,
+    };
+}
+
+pf_material_t pf_material_default(const char *name)
+{
+    pf_material_t m;
+    memset(&m, 0, sizeof m);
+    snprintf(m.name, sizeof m.name, "%s", name ? name : "default");
+    m.type = PF_MAT_DIFFUSE;
+    m.kd = pf_v3s(0.8f);
+    m.ns = 1.0f;
+    m.ior = 1.5f;
+    m.kt = pf_v3s(1.0f);
+    return m;
+}
+
+pf_scene_t *pf_scene_create(void)
+{
+    pf_scene_t *self = calloc(1, sizeof *self);
+    if (!self)
+        return NULL;
+    self->settings = pf_settings_default();
+    return self;
+}
+
+void pf_mesh_free(pf_mesh_t *mesh)
+{
+    if (!mesh)
+        return;
+    free(mesh->pos);
+    free(mesh->nrm);
+    free(mesh->idx);
+    free(mesh->mat);
+    memset(mesh, 0, sizeof *mesh);
+}
+
+void pf_scene_destroy(pf_scene_t **self_p)
+{
+    if (!self_p || !*self_p)
+        return;
+    pf_scene_t *self = *self_p;
+    for (size_t i = 0; i < self->nmeshes; i++)
+        pf_mesh_free(&self->meshes[i]);
+    free(self->meshes);
+    free(self->mats);
+    free(self->spheres);
+    free(self->lights);
+    free(self);
+    *self_p = NULL;
+}
+
+int pf_scene_add_material(pf_scene_t *self, const pf_material_t *mat)
+{
+    if (pf_reserve((void **)&self->mats, &self->cap_mats, self->nmats + 1, sizeof *mat))
+        return PF_ENOMEM;
+    self->mats[self->nmats] = *mat;
+    return (int)self->nmats++;
+}
+
+int pf_scene_find_material(const pf_scene_t *self, const char *name)
+{
+    for (size_t i = self->nmats; i-- > 0;)
+        if (strcmp(self->mats[i].name, name) == 0)
+            return (int)i;
+    return -1;
+}
+
+int pf_scene_add_mesh(pf_scene_t *self, pf_mesh_t *mesh)
+{
+    if (pf_reserve((void **)&self->meshes, &self->cap_meshes, self->nmeshes + 1, sizeof *mesh))
+        return PF_ENOMEM;
+    self->meshes[self->nmeshes++] = *mesh;
+    memset(mesh, 0, sizeof *mesh);
+    return PF_OK;
+}
+
+int pf_scene_add_sphere(pf_scene_t *self, const pf_sphere_t *sphere)
+{
+    if (pf_reserve((void **)&self->spheres, &self->cap_spheres, self->nspheres + 1, sizeof *sphere))
+        return PF_ENOMEM;
+    self->spheres[self->nspheres++] = *sphere;
+    return PF_OK;
+}
+
+int pf_scene_add_light(pf_scene_t *self, const pf_light_t *light)
+{
+    if (pf_reserve((void **)&self->lights, &self->cap_lights, self->nlights + 1, sizeof *light))
+        return PF_ENOMEM;
+    self->lights[self->nlights++] = *light;
+    return PF_OK;
+}
+
+/* The largest coordinate a scene may use. Every position can become a ray
+ * origin (hit points, lights, the camera), and Embree refuses rays whose
+ * origin lies beyond its FLT_LARGE, 1.844e18 (Debian's build aborts on an
+ * assertion). False for NaN too. */
+#define S_COORD_MAX 1e18f
+
+static int s_in_range(pf_vec3 v)
+{
+    return fabsf(v.x) <= S_COORD_MAX && fabsf(v.y) <= S_COORD_MAX && fabsf(v.z) <= S_COORD_MAX;
+}
+
+void pf_scene_bounds(const pf_scene_t *self, pf_vec3 *lo, pf_vec3 *hi)
+{
+    pf_vec3 a, b;
+    pf_scene_geometry_bounds(self, &a, &b);
+    for (size_t l = 0; l < self->nlights; l++) {
+        a = pf_vmin(a, self->lights[l].pos);
+        b = pf_vmax(b, self->lights[l].pos);
+    }
+    *lo = a;
+    *hi = b;
+}
+
+void pf_scene_geometry_bounds(const pf_scene_t *self, pf_vec3 *lo, pf_vec3 *hi)
+{
+    pf_vec3 a = pf_v3s(FLT_MAX), b = pf_v3s(-FLT_MAX);
+    for (size_t m = 0; m < self->nmeshes; m++) {
+        const pf_mesh_t *mesh = &self->meshes[m];
+        for (size_t i = 0; i < mesh->nverts; i++) {
+            /* Vertices finalize drops with their triangles (non-finite, out of
+             * range) would make the bounds, and the framing camera and
+             * search radii derived from them, infinite. */
+            if (!s_in_range(mesh->pos[i]))
+                continue;
+            a = pf_vmin(a, mesh->pos[i]);
+            b = pf_vmax(b, mesh->pos[i]);
+        }
+    }
+    for (size_t s = 0; s < self->nspheres; s++) {
+        const pf_sphere_t *sp = &self->spheres[s];
+        a = pf_vmin(a, pf_sub(sp->center, pf_v3s(sp->radius)));
+        b = pf_vmax(b, pf_add(sp->center, pf_v3s(sp->radius)));
+    }
+    *lo = a;
+    *hi = b;
+}
+
+/* A shading normal made unit length, or zero when it has no direction (zero
+ * or not finite). It must come out unit even when its squared length
+ * underflows or overflows a float (components below ~1e-19 or above ~1e19):
+ * (0, 1.5e-39, 4e-23) used to become (0, 4e-17, 1.057), which finalizing
+ * again moves, so the scene blob of such a scene changed on every trip (the
+ * blob reader keeps a normal's bits only when it is unit; sceneblob.c), and
+ * (0, 6e32, 1) used to become zero. Such a normal is first divided by its
+ * largest magnitude, which leaves a squared length in [1, 3]; the division,
+ * not a multiplication by the reciprocal, because that overflows for a
+ * subnormal magnitude. Every other normal takes the direct path, bit for bit
+ * as before. */
+static pf_vec3 s_unit_normal(pf_vec3 n)
+{
+    if (!pf_is_finite3(n))
+        return pf_v3(0, 0, 0);
+    float l2 = pf_len2(n);
+    if (!(l2 >= FLT_MIN && l2 <= FLT_MAX)) {
+        float m = pf_maxc(pf_vabs(n));
+        if (!(m > 0.0f))
+            return pf_v3(0, 0, 0);
+        n = pf_v3(n.x / m, n.y / m, n.z / m);
+        l2 = pf_len2(n);
+    }
+    return pf_scale(n, 1.0f / sqrtf(l2));
+}
+
+static int s_mat_finite(const pf_material_t *m)
+{
+    return pf_is_finite3(m->kd) && pf_is_finite3(m->ks) && pf_is_finite3(m->kt) && pf_is_finite3(m->le) &&
+           isfinite(m->ns) && isfinite(m->ior);
+}
+
+/* Removes triangles that cannot be rendered: zero area, an area whose square
+ * overflows a float (edges beyond ~1e9; the light table and the hit normals
+ * need it), vertices non-finite or beyond S_COORD_MAX. Returns how many. */
+static size_t s_drop_degenerate(pf_mesh_t *mesh)
+{
+    size_t kept = 0;
+    for (size_t t = 0; t < mesh->ntris; t++) {
+        const uint32_t *v = &mesh->idx[3 * t];
+        pf_vec3 p0 = mesh->pos[v[0]], p1 = mesh->pos[v[1]], p2 = mesh->pos[v[2]];
+        pf_vec3 n = pf_cross(pf_sub(p1, p0), pf_sub(p2, p0));
+        float a2 = pf_len2(n);
+        if (!(a2 > 0.0f) || !isfinite(a2) || !s_in_range(p0) || !s_in_range(p1) || !s_in_range(p2))
+            continue;
+        if (kept != t) {
+            memmove(&mesh->idx[3 * kept], v, 3 * sizeof *v);
+            mesh->mat[kept] = mesh->mat[t];
+        }
+        kept++;
+    }
+    size_t dropped = mesh->ntris - kept;
+    mesh->ntris = kept;
+    return dropped;
+}
+
+/* Frames the geometry: looks at the bounds' centre from +z, far enough that
+ * the bounding sphere fits the vertical field of view. */
+static void s_frame_camera(pf_scene_t *self)
+{
+    pf_vec3 lo, hi;
+    pf_scene_bounds(self, &lo, &hi);
+    pf_vec3 c = pf_scale(pf_add(lo, hi), 0.5f);
+    float r = 0.5f * pf_len(pf_sub(hi, lo));
+    if (!(r > 0.0f) || !isfinite(r))
+        r = 1.0f;
+    float fov = 40.0f;
+    float dist = r / sinf(0.5f * fov * PF_PI / 180.0f);
+    self->camera = (pf_camera_desc_t){ .pos = pf_add(c, pf_v3(0, 0, dist)), .look_at = c, .up = pf_v3(0, 1, 0), .vfov_deg = fov };
+    self->has_camera = 1;
+}
+
+int pf_scene_finalize(pf_scene_t *self, pf_error_t *err)
+{
+    const char *file = self->path[0] ? self->path : "scene";
+    for (size_t i = 0; i < self->nmats; i++) {
+        const pf_material_t *m = &self->mats[i];
+        if (!s_mat_finite(m))
+            return pf_error_set(err, PF_EPARSE, file, 0, "material '%s' has a non-finite value", m->name);
+        if (m->type == PF_MAT_GLASS && !(m->ior > 0.0f))
+            return pf_error_set(err, PF_EPARSE, file, 0, "material '%s': index of refraction must be > 0", m->name);
+    }
+    size_t dropped = 0, ntris = 0;
+    for (size_t mi = 0; mi < self->nmeshes; mi++) {
+        pf_mesh_t *mesh = &self->meshes[mi];
+        for (size_t t = 0; t < mesh->ntris; t++) {
+            for (int k = 0; k < 3; k++)
+                if (mesh->idx[3 * t + k] >= mesh->nverts)
+                    return pf_error_set(err, PF_EPARSE, file, 0, "mesh '%s': vertex index out of range", mesh->name);
+            if (mesh->mat[t] >= self->nmats)
+                return pf_error_set(err, PF_EPARSE, file, 0, "mesh '%s': material index out of range", mesh->name);
+        }
+        if (mesh->nrm) {
+            for (size_t v = 0; v < mesh->nverts; v++) {
+                mesh->nrm[v] = s_unit_normal(mesh->nrm[v]);
+            }
+        }
+        dropped += s_drop_degenerate(mesh);
+        ntris += mesh->ntris;
+    }
+    if (dropped)
+        pf_warn("%s: skipped %zu degenerate triangle%s (zero area, area too large for a float, or vertices "
+                "non-finite or beyond +-1e18)",
+                file, dropped, dropped == 1 ? "" : "s");
+    for (size_t s = 0; s < self->nspheres; s++) {
+        const pf_sphere_t *sp = &self->spheres[s];
+        if (!pf_is_finite3(sp->center) || !(sp->radius > 0.0f) || !isfinite(sp->radius))
+            return pf_error_set(err, PF_EPARSE, file, 0, "sphere %zu: centre must be finite and radius > 0", s);
+        if (!s_in_range(pf_add(pf_vabs(sp->center), pf_v3s(sp->radius))))
+            return pf_error_set(err, PF_ERANGE, file, 0, "sphere %zu reaches beyond +-1e18, the ray tracer's range",
+                                s);
+        if (sp->mat >= self->nmats)
+            return pf_error_set(err, PF_EPARSE, file, 0, "sphere %zu: material index out of range", s);
+        if (!pf_is_black(self->mats[sp->mat].le))
+            return pf_error_set(err, PF_EUNSUPPORTED, file, 0,
+                                "sphere %zu: emissive spheres are not supported; use an emissive mesh", s);
+    }
+    for (size_t l = 0; l < self->nlights; l++) {
+        const pf_light_t *li = &self->lights[l];
+        pf_vec3 I = li->intensity;
+        if (!s_in_range(li->pos) || !pf_is_finite3(I) || I.x < 0.0f || I.y < 0.0f || I.z < 0.0f ||
+            (li->type == PF_LIGHT_SPOT && (!pf_is_finite3(li->dir) || !(pf_len2(li->dir) > 0.0f))))
+            return pf_error_set(err, PF_ERANGE, file, 0,
+                                "light %zu: position must be finite and within +-1e18, intensity finite and >= 0", l);
+    }
+    int emitters = (int)self->nlights;
+    for (size_t mi = 0; mi < self->nmeshes && !emitters; mi++)
+        for (size_t t = 0; t < self->meshes[mi].ntris && !emitters; t++)
+            emitters = !pf_is_black(self->mats[self->meshes[mi].mat[t]].le);
+    if (ntris == 0 && self->nspheres == 0)
+        return pf_error_set(err, PF_EPARSE, file, 0, "the scene has no geometry");
+    if (!emitters)
+        return pf_error_set(err, PF_EPARSE, file, 0,
+                            "the scene has no light: give a material an emission (Ke) or add a point or spot light");
+    if (!self->has_camera)
+        s_frame_camera(self);
+    const pf_camera_desc_t *c = &self->camera;
+    if (!s_in_range(c->pos) || !pf_is_finite3(c->look_at) || !pf_is_finite3(c->up) || !(c->vfov_deg > 0.0f) ||
+        !(c->vfov_deg < 180.0f) || !(pf_len2(pf_sub(c->look_at, c->pos)) > 0.0f) ||
+        !(pf_len2(pf_cross(pf_sub(c->look_at, c->pos), c->up)) > 0.0f))
+        return pf_error_set(err, PF_EPARSE, file, 0,
+                            "bad camera: position must be within +-1e18 and differ from look-at, up must not be "
+                            "parallel to the view, field of view in (0, 180)");
+    return PF_OK;
+}

@@ -1,0 +1,141 @@
+/* scene.h: the scene model shared by every stage: materials, triangle meshes,
+ * analytic spheres, point/spot lights, the camera and the render settings.
+ * The loaders in load/ (JSON, OBJ/MTL, PLY) fill it; pf_scene_finalize()
+ * validates it and derives the area lights from emissive triangles.
+ * A pf_scene_t owns everything it points to; pf_scene_destroy frees it. */
+#ifndef PF_SCENE_H
+#define PF_SCENE_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "base/status.h"
+#include "base/vec.h"
+
+/* Material kinds. Every kind may also emit (le), one-sided along the face
+ * normal given by the triangle's counter-clockwise winding. */
+typedef enum {
+    PF_MAT_DIFFUSE = 0, /* Lambertian kd, plus an optional energy-conserving Phong lobe ks/ns */
+    PF_MAT_MIRROR = 1,  /* perfect specular reflection with reflectance ks */
+    PF_MAT_GLASS = 2,   /* smooth dielectric: Fresnel reflection tinted ks, refraction tinted kt, index ior */
+} pf_mat_type;
+
+#define PF_NAME_MAX 64
+
+typedef struct pf_material {
+    char name[PF_NAME_MAX];
+    pf_mat_type type;
+    pf_vec3 kd;  /* diffuse albedo (DIFFUSE) */
+    pf_vec3 ks;  /* Phong glossy albedo (DIFFUSE), reflectance (MIRROR), reflection tint (GLASS) */
+    float ns;    /* Phong exponent (DIFFUSE with ks > 0) */
+    pf_vec3 kt;  /* transmission tint (GLASS) */
+    float ior;   /* index of refraction (GLASS) */
+    pf_vec3 le;  /* emitted radiance, one-sided */
+} pf_material_t;
+
+/* A triangle mesh in world space. nrm is per vertex (shading normals) or NULL. */
+typedef struct pf_mesh {
+    char name[PF_NAME_MAX];
+    size_t nverts, ntris;
+    pf_vec3 *pos;    /* nverts */
+    pf_vec3 *nrm;    /* nverts, unit length, or NULL */
+    uint32_t *idx;   /* 3 * ntris vertex indices */
+    uint32_t *mat;   /* ntris material indices into pf_scene_t.mats */
+} pf_mesh_t;
+
+typedef struct pf_sphere {
+    pf_vec3 center;
+    float radius;
+    uint32_t mat;
+} pf_sphere_t;
+
+typedef enum { PF_LIGHT_POINT = 0, PF_LIGHT_SPOT = 1 } pf_light_type;
+
+/* Point and spot lights (area lights come from emissive materials). */
+typedef struct pf_light {
+    pf_light_type type;
+    pf_vec3 pos;
+    pf_vec3 intensity;  /* radiant intensity, W/sr per channel, on the axis for spots */
+    pf_vec3 dir;        /* spot axis, unit */
+    float cos_inner;    /* spot: full intensity inside this cone */
+    float cos_outer;    /* spot: zero outside; smoothstep between */
+} pf_light_t;
+
+typedef struct pf_camera_desc {
+    pf_vec3 pos, look_at, up;
+    float vfov_deg; /* vertical field of view */
+} pf_camera_desc_t;
+
+/* The largest settings.gather_filter: a (2n+1)^2 window of pixels. */
+#define PF_MAX_GATHER_FILTER 8
+
+/* Render settings: defaults from pf_settings_default(), then the scene file's
+ * "render" block, then the command line. */
+typedef struct pf_settings {
+    int width, height;
+    int spp;                   /* camera samples per pixel */
+    uint64_t photons;          /* global photons emitted */
+    uint64_t caustic_photons;  /* caustic photons emitted */
+    int gather;                /* final-gather rays per camera sample at a diffuse hit */
+    int gather_filter;         /* first gathers shared over (2n+1)^2 pixels; 0: none */
+    int light_samples;         /* shadow rays per area-light sample at a diffuse hit */
+    int max_depth;             /* specular recursion depth (camera side) */
+    int photon_max_depth;      /* bounces a photon may make */
+    int global_k;              /* photons in a global-map (irradiance) estimate */
+    int caustic_k;             /* photons in a caustic estimate */
+    float caustic_radius;      /* max caustic search radius, world units; 0: automatic */
+    float global_radius;       /* max global search radius, world units; 0: automatic */
+    int irradiance_stride;     /* precompute irradiance at every n-th global photon */
+    int threads;               /* 0: all cores */
+    uint64_t seed;
+    float exposure;            /* stops, for the PNG only */
+} pf_settings_t;
+
+pf_settings_t pf_settings_default(void);
+
+typedef struct pf_scene {
+    char path[1024];          /* the file it was loaded from */
+    pf_material_t *mats;
+    size_t nmats, cap_mats;
+    pf_mesh_t *meshes;
+    size_t nmeshes, cap_meshes;
+    pf_sphere_t *spheres;
+    size_t nspheres, cap_spheres;
+    pf_light_t *lights;
+    size_t nlights, cap_lights;
+    pf_camera_desc_t camera;
+    int has_camera;
+    pf_settings_t settings;
+} pf_scene_t;
+
+/* Creates an empty scene with default settings; NULL when out of memory. */
+pf_scene_t *pf_scene_create(void);
+/* Frees the scene and everything it owns; NULL-safe; sets *self_p = NULL. */
+void pf_scene_destroy(pf_scene_t **self_p);
+
+/* Appends a material and returns its index (>= 0) or PF_ENOMEM. */
+int pf_scene_add_material(pf_scene_t *self, const pf_material_t *mat);
+/* Index of the material named name, or -1. */
+int pf_scene_find_material(const pf_scene_t *self, const char *name);
+/* Appends a mesh, taking ownership of its arrays (and zeroing *mesh). 0 or PF_ENOMEM. */
+int pf_scene_add_mesh(pf_scene_t *self, pf_mesh_t *mesh);
+int pf_scene_add_sphere(pf_scene_t *self, const pf_sphere_t *sphere);
+int pf_scene_add_light(pf_scene_t *self, const pf_light_t *light);
+/* Frees a mesh's arrays (for meshes not handed to a scene). */
+void pf_mesh_free(pf_mesh_t *mesh);
+
+/* A default material: grey Lambertian (kd 0.8). */
+pf_material_t pf_material_default(const char *name);
+
+/* Checks the scene (indices in range, finite values, at least one light) and
+ * drops degenerate triangles with one warning line. Frames a camera around the
+ * geometry if none was given. 0 or a status with err filled. */
+int pf_scene_finalize(pf_scene_t *self, pf_error_t *err);
+
+/* World-space bounds of all geometry and of the point and spot lights. */
+void pf_scene_bounds(const pf_scene_t *self, pf_vec3 *lo, pf_vec3 *hi);
+/* The bounds of the geometry alone (meshes and spheres, not the lights);
+ * lo > hi when there is none. */
+void pf_scene_geometry_bounds(const pf_scene_t *self, pf_vec3 *lo, pf_vec3 *hi);
+
+#endif

@@ -1,1 +1,0 @@
-pf_add_test(hash test_hash.c LIBS pf_common LABELS unit)
