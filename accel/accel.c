@@ -12,8 +12,8 @@
 #include <stdlib.h>
 #include <xmmintrin.h>
 
-#include "base/sampling.h"
 #include "base/log.h"
+#include "base/sampling.h"
 
 struct pf_accel {
     RTCDevice device;

@@ -9,9 +9,9 @@
 
 #include <stdint.h>
 
-#include "scene/scene.h"
 #include "base/status.h"
 #include "base/vec.h"
+#include "scene/scene.h"
 
 typedef struct pf_accel pf_accel_t;
 

@@ -16,6 +16,8 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "base/reserve.h"
+
 static const char s_z85_alphabet[] =
     "0123456789abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ.-:+=^!/*?&<>()[]{}@%$#";
 
@@ -220,15 +222,9 @@ int pf_keyfile_read_list(const char *path, char (**keys)[41], size_t *n, pf_erro
                               PF_Z85_KEY_LEN);
             break;
         }
-        if (count == cap) {
-            size_t ncap = cap ? 2 * cap : 8;
-            char(*grown)[41] = realloc(list, ncap * sizeof *list);
-            if (!grown) {
-                rc = pf_error_set(err, PF_ENOMEM, path, r.line, "out of memory");
-                break;
-            }
-            list = grown;
-            cap = ncap;
+        if (pf_reserve((void **)&list, &cap, count + 1, sizeof *list)) {
+            rc = pf_error_set(err, PF_ENOMEM, path, r.line, "out of memory");
+            break;
         }
         memcpy(list[count++], value, PF_Z85_KEY_LEN + 1);
     }

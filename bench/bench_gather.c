@@ -22,36 +22,39 @@
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 
+#include "base/rng.h"
 #include "bench/bench_setup.h"
 #include "material/bsdf.h"
 #include "photon/irrtex.h"
-#include "base/rng.h"
 #include "render/render.h"
 
-int main(int argc, char **argv)
-{
-    const char *path = argc > 1 ? argv[1] : "scenes/cornell-spheres/scene.json";
-    int w = argc > 2 ? atoi(argv[2]) : 128, gather = argc > 3 ? atoi(argv[3]) : 16;
-    pf_frame_t b = bench_load(path);
-    const pf_scene_t *scene = b.scene;
-    const pf_accel_t *accel = b.accel;
-    pf_settings_t s = scene->settings;
-    s.width = s.height = w;
-    pf_photon_stats_t st;
-    bench_photon_pass(&b, &s, &st);
-    pf_frame_ready(&b);
-    const pf_photon_maps_t *maps = &b.maps;
-    pf_accel_thread_init();
-    pf_render_ctx_t ctx;
-    pf_render_ctx_init(&ctx, &b, &s);
+/* The figures this bench prints, filled in step by step. sink adds up what
+ * the timed loops compute, so that none of it is optimized away; its total,
+ * in the order the steps run, is printed as the checksum. */
+typedef struct s_figures {
+    size_t n;                      /* gather rays */
+    double sink;
+    double best_steps[3];          /* intersection; + irradiance lookup; + leak-test ray */
+    size_t lookups, traced, flat;  /* lookups within a support, of them traced; flat points */
+    size_t nl;                     /* diffuse hits of the gather rays */
+    double best_l[3];              /* the lookup alone: ray order, in cache, shuffled */
+    double best_a, best_b, best_c; /* Embree alone; the renderer's gather; each read at once */
+} s_figures_t;
 
+/* The gather rays: one camera ray through each pixel centre of a w x w
+ * image, and at each diffuse hit `gather` cosine-distributed rays. Returns
+ * the malloc'd rays and their count in *n_out. */
+static pf_ray_t *s_gather_rays(const pf_render_ctx_t *ctx, const pf_scene_t *scene, const pf_accel_t *accel, int w,
+                               int gather, size_t *n_out)
+{
     size_t cap = (size_t)w * (size_t)w * (size_t)gather, n = 0;
     pf_ray_t *rays = malloc(cap * sizeof *rays);
     pf_rng_t rng = pf_rng_make(7, PF_STREAM_TEST, 0, 0);
     for (int y = 0; y < w; y++)
         for (int x = 0; x < w; x++) {
-            pf_ray_t cam = pf_camera_ray(&ctx.camera, (float)x + 0.5f, (float)y + 0.5f);
+            pf_ray_t cam = pf_camera_ray(&ctx->camera, (float)x + 0.5f, (float)y + 0.5f);
             pf_hit_t h;
             if (!pf_accel_intersect(accel, &cam, INFINITY, &h) || scene->mats[h.mat].type != PF_MAT_DIFFUSE)
                 continue;
@@ -63,12 +66,20 @@ int main(int argc, char **argv)
                     rays[n++] = pf_spawn_ray(&h, wi);
             }
         }
+    *n_out = n;
+    return rays;
+}
+
+static void s_time_steps(const pf_scene_t *scene, const pf_accel_t *accel, const pf_photon_maps_t *maps,
+                         const pf_ray_t *rays, s_figures_t *f)
+{
+    size_t n = f->n;
     /* Where a gather ray's time goes, the renderer's steps one at a time on
      * the same rays: the intersection; + the irradiance lookup at a diffuse
      * hit (nearest point with an agreeing normal); + the leak test's
      * visibility ray (as s_irradiance makes it). The renderer's own gather
      * adds to these the mirror and glass paths it follows and the shading. */
-    double sink = 0.0;
+    double sink = f->sink;
     double best_steps[3] = { 1e30, 1e30, 1e30 };
     size_t lookups = 0, traced = 0, flat = 0;
     for (size_t i = 0; i < pf_kdtree_size(maps->irradiance); i++)
@@ -105,6 +116,20 @@ int main(int argc, char **argv)
             best_steps[step] = dt < best_steps[step] ? dt : best_steps[step];
         }
     }
+    f->sink = sink;
+    memcpy(f->best_steps, best_steps, sizeof best_steps);
+    f->lookups = lookups;
+    f->traced = traced;
+    f->flat = flat;
+}
+
+/* The irradiance lookup alone, best of 3. */
+static void s_time_lookup(const pf_scene_t *scene, const pf_accel_t *accel, const pf_photon_maps_t *maps,
+                          const pf_ray_t *rays, s_figures_t *f)
+{
+    size_t n = f->n;
+    const pf_kdtree_t *irr = maps->irradiance;
+    double sink = f->sink;
     /* The lookup alone, at the diffuse hits of the same rays: in ray
      * order; with every query made 8 times in a row (its data in cache: what
      * the lookup costs without waiting on memory); and in shuffled order
@@ -134,7 +159,17 @@ int main(int argc, char **argv)
         }
     free(xs);
     free(nfs);
+    f->sink = sink;
+    memcpy(f->best_l, best_l, sizeof best_l);
+    f->nl = nl;
+}
 
+/* Embree alone against the renderer's gather, and the gather with each
+ * texel read at once; best of 3. */
+static void s_time_gather(pf_render_ctx_t *ctx, const pf_accel_t *accel, const pf_ray_t *rays, s_figures_t *f)
+{
+    size_t n = f->n;
+    double sink = f->sink;
     double best_a = 1e30, best_b = 1e30, best_c = 1e30;
     for (int rep = 0; rep < 3; rep++) {
         double t0 = pf_now();
@@ -143,19 +178,33 @@ int main(int argc, char **argv)
             sink += pf_accel_intersect(accel, &rays[i], INFINITY, &h) ? h.t : 0.0f;
         }
         double t1 = pf_now();
-        sink += pf_render_gather_rays(&ctx, rays, n, 0).x;
+        sink += pf_render_gather_rays(ctx, rays, n, 0).x;
         double t2 = pf_now();
-        ctx.reads_at_once = 1;
-        sink += pf_render_gather_rays(&ctx, rays, n, 0).x;
-        ctx.reads_at_once = 0;
+        ctx->reads_at_once = 1;
+        sink += pf_render_gather_rays(ctx, rays, n, 0).x;
+        ctx->reads_at_once = 0;
         double t3 = pf_now();
         best_a = t1 - t0 < best_a ? t1 - t0 : best_a;
         best_b = t2 - t1 < best_b ? t2 - t1 : best_b;
         best_c = t3 - t2 < best_c ? t3 - t2 : best_c;
     }
+    f->sink = sink;
+    f->best_a = best_a;
+    f->best_b = best_b;
+    f->best_c = best_c;
+}
+
+/* The figures, as the steps left them in f. */
+static void s_print(const char *path, int w, int gather, const pf_photon_stats_t *st, const pf_frame_t *b,
+                    const s_figures_t *f)
+{
+    const size_t n = f->n, nl = f->nl, lookups = f->lookups, traced = f->traced, flat = f->flat;
+    const double *best_steps = f->best_steps, *best_l = f->best_l;
+    const double best_a = f->best_a, best_b = f->best_b, best_c = f->best_c, sink = f->sink;
+    const pf_photon_maps_t *maps = &b->maps;
     printf("scene %s, %zu gather rays (%dx%d pixel centres, %d per diffuse hit), %llu global photons, "
            "%llu irradiance points; one thread, best of 3\n",
-           path, n, w, w, gather, (unsigned long long)st.global_stored, (unsigned long long)st.irradiance_points);
+           path, n, w, w, gather, (unsigned long long)st->global_stored, (unsigned long long)st->irradiance_points);
     printf("embree alone       %8.2f Mrays/s\n", (double)n / best_a / 1e6);
     printf("gather (renderer)  %8.2f Mrays/s\n", (double)n / best_b / 1e6);
     printf("ratio              %8.1f %%   (checksum %g)\n", 100.0 * best_a / best_b, sink);
@@ -172,13 +221,38 @@ int main(int argc, char **argv)
            "traced the leak-test ray\n",
            100.0 * (double)flat / (double)pf_kdtree_size(maps->irradiance), lookups,
            lookups ? 100.0 * (double)traced / (double)lookups : 0.0);
-    if (b.texels) {
-        size_t direct, filled = pf_irrtex_filled(b.texels, &direct);
+    if (b->texels) {
+        size_t direct, filled = pf_irrtex_filled(b->texels, &direct);
         printf("irradiance texels: side %.4g, %zu allocated, %zu filled (%.1f MB), of which %.1f %% look up "
                "directly\n",
-               (double)pf_irrtex_side(b.texels), pf_irrtex_count(b.texels), filled, 8.0 * (double)filled / 1e6,
+               (double)pf_irrtex_side(b->texels), pf_irrtex_count(b->texels), filled, 8.0 * (double)filled / 1e6,
                filled ? 100.0 * (double)direct / (double)filled : 0.0);
     }
+}
+
+int main(int argc, char **argv)
+{
+    const char *path = argc > 1 ? argv[1] : "scenes/cornell-spheres/scene.json";
+    int w = argc > 2 ? atoi(argv[2]) : 128, gather = argc > 3 ? atoi(argv[3]) : 16;
+    pf_frame_t b = bench_load(path);
+    const pf_scene_t *scene = b.scene;
+    const pf_accel_t *accel = b.accel;
+    pf_settings_t s = scene->settings;
+    s.width = s.height = w;
+    pf_photon_stats_t st;
+    bench_photon_pass(&b, &s, &st);
+    pf_frame_ready(&b);
+    const pf_photon_maps_t *maps = &b.maps;
+    pf_accel_thread_init();
+    pf_render_ctx_t ctx;
+    pf_render_ctx_init(&ctx, &b, &s);
+
+    s_figures_t f = { 0 };
+    pf_ray_t *rays = s_gather_rays(&ctx, scene, accel, w, gather, &f.n);
+    s_time_steps(scene, accel, maps, rays, &f);
+    s_time_lookup(scene, accel, maps, rays, &f);
+    s_time_gather(&ctx, accel, rays, &f);
+    s_print(path, w, gather, &st, &b, &f);
     free(rays);
     pf_frame_close(&b);
     return 0;

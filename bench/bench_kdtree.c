@@ -10,9 +10,9 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "photon/kdtree.h"
 #include "base/log.h"
 #include "base/rng.h"
+#include "photon/kdtree.h"
 
 static pf_photon_t *s_random_photons(size_t n)
 {

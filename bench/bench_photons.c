@@ -16,8 +16,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "bench/bench_setup.h"
 #include "base/rng.h"
+#include "bench/bench_setup.h"
 #include "photon/irradiance.h"
 
 int main(int argc, char **argv)

@@ -141,6 +141,18 @@ typedef struct s_farm {
     double last_bad_log;
     int bad_since_log;
     int leasing; /* tiles have been leased: --min-workers was met once */
+    /* What pf_farm_render's steps share: the job's clock, what it started
+     * (and must stop), and the event loop's clocks. */
+    double t0;          /* when the job began */
+    int ts;             /* tile side in pixels */
+    char endpoint[256]; /* where the socket listens, for the local workers */
+    pf_zap_t *zap;
+    pid_t pids[S_MAX_LOCAL];
+    int npids;
+    pthread_t phtid;
+    int ph_started; /* the photon thread runs and has not been joined */
+    pf_progress_t bar;
+    double render_start, last_log, no_worker_since;
 } s_farm;
 
 /* --- sending ------------------------------------------------------------ */
@@ -498,6 +510,8 @@ static void s_tick(s_farm *f)
         }
 }
 
+/* --- the job's steps ------------------------------------------------------ */
+
 void pf_farm_opts_default(pf_farm_opts_t *o)
 {
     memset(o, 0, sizeof *o);
@@ -515,6 +529,354 @@ static int s_loopback(const char *ep)
            strstr(ep, "://localhost") || strstr(ep, "://[::1]");
 }
 
+/* The tile table, all tiles queued in order, and the worker table. */
+static int s_alloc_tables(s_farm *f, const pf_settings_t *s, pf_error_t *err)
+{
+    int ts = f->o->tile_size > 0 ? f->o->tile_size : 32;
+    int tx = (s->width + ts - 1) / ts, ty = (s->height + ts - 1) / ts;
+    f->ts = ts;
+    f->nt = tx * ty;
+    f->t = calloc((size_t)f->nt, sizeof *f->t);
+    f->queue = calloc((size_t)f->nt, sizeof *f->queue);
+    f->w = calloc(S_MAX_WORKERS, sizeof *f->w);
+    if (!f->t || !f->queue || !f->w)
+        return pf_error_set(err, PF_ENOMEM, NULL, 0, "out of memory");
+    for (int i = 0; i < f->nt; i++) {
+        s_tile *t = &f->t[i];
+        t->x0 = (uint32_t)((i % tx) * ts);
+        t->y0 = (uint32_t)((i / tx) * ts);
+        t->w = (uint32_t)(t->x0 + (uint32_t)ts <= (uint32_t)s->width ? ts : s->width - (int)t->x0);
+        t->h = (uint32_t)(t->y0 + (uint32_t)ts <= (uint32_t)s->height ? ts : s->height - (int)t->y0);
+        t->owner = -1;
+        f->queue[i] = i;
+    }
+    f->qlen = f->nt;
+    return PF_OK;
+}
+
+/* CURVE on the socket: the coordinator's key, and a ZAP handler that admits
+ * only the allowed worker keys. */
+static int s_setup_curve(s_farm *f, pf_error_t *err)
+{
+    const pf_farm_opts_t *opts = f->o;
+    int one = 1;
+    char pub[41], sec[41];
+    char (*keys)[41] = NULL;
+    size_t nkeys = 0;
+    if (pf_keyfile_read(opts->curve_secret, pub, sec, err) != PF_OK)
+        return PF_EINVAL;
+    if (!opts->curve_allow)
+        return pf_error_set(err, PF_EINVAL, NULL, 0, "CURVE needs a list of allowed worker keys (--curve-allow)");
+    if (pf_keyfile_read_list(opts->curve_allow, &keys, &nkeys, err) != PF_OK)
+        return PF_EINVAL;
+    f->zap = pf_zap_start(f->ctx, (const char(*)[41])keys, nkeys);
+    free(keys);
+    if (!f->zap)
+        return pf_error_set(err, PF_EIO, NULL, 0, "cannot start the CURVE authentication handler");
+    zmq_setsockopt(f->sock, ZMQ_ZAP_DOMAIN, "photonfarm", 10);
+    zmq_setsockopt(f->sock, ZMQ_CURVE_SERVER, &one, sizeof one);
+    zmq_setsockopt(f->sock, ZMQ_CURVE_SECRETKEY, sec, 40);
+    pf_info("CURVE on: %zu worker key%s allowed", nkeys, nkeys == 1 ? "" : "s");
+    return PF_OK;
+}
+
+/* The ROUTER socket, with CURVE and its ZAP handler when asked, bound; its
+ * endpoint lands in f->endpoint. */
+static int s_open_socket(s_farm *f, pf_error_t *err)
+{
+    const pf_farm_opts_t *opts = f->o;
+    f->ctx = zmq_ctx_new();
+    f->sock = f->ctx ? zmq_socket(f->ctx, ZMQ_ROUTER) : NULL;
+    if (!f->sock)
+        return pf_error_set(err, PF_EIO, NULL, 0, "cannot create a ZeroMQ socket: %s", zmq_strerror(zmq_errno()));
+    int one = 1, linger = 1000, hwm = 100000;
+    int64_t maxmsg = PF_PROTO_MAX_MESSAGE;
+    zmq_setsockopt(f->sock, ZMQ_ROUTER_MANDATORY, &one, sizeof one);
+    zmq_setsockopt(f->sock, ZMQ_LINGER, &linger, sizeof linger);
+    zmq_setsockopt(f->sock, ZMQ_MAXMSGSIZE, &maxmsg, sizeof maxmsg);
+    zmq_setsockopt(f->sock, ZMQ_SNDHWM, &hwm, sizeof hwm);
+    zmq_setsockopt(f->sock, ZMQ_RCVHWM, &hwm, sizeof hwm);
+    if (opts->curve_secret) {
+        int rc = s_setup_curve(f, err);
+        if (rc != PF_OK)
+            return rc;
+    }
+    const char *bind = opts->bind ? opts->bind : "tcp://127.0.0.1:*";
+    if (zmq_bind(f->sock, bind) != 0)
+        return pf_error_set(err, PF_EIO, NULL, 0, "cannot bind %s: %s", bind, zmq_strerror(zmq_errno()));
+    size_t eplen = sizeof f->endpoint;
+    zmq_getsockopt(f->sock, ZMQ_LAST_ENDPOINT, f->endpoint, &eplen);
+    if (!s_loopback(f->endpoint) && !opts->curve_secret)
+        pf_warn("listening on %s without CURVE: anyone who can reach it can join and read the scene "
+                "(see 'photonfarm keygen')", f->endpoint);
+    pf_info("listening on %s", f->endpoint);
+    return PF_OK;
+}
+
+/* Local workers, started now so they connect during the photon pass. Their
+ * pids go to f->pids, which are stopped on every path. */
+static int s_start_local_workers(s_farm *f, pf_error_t *err)
+{
+    const pf_farm_opts_t *opts = f->o;
+    if (opts->local_workers <= 0)
+        return PF_OK;
+    char exe[4096];
+    if (opts->worker_exe)
+        snprintf(exe, sizeof exe, "%s", opts->worker_exe);
+    else if (pf_spawn_default_worker_exe(exe, sizeof exe) != 0)
+        return pf_error_set(err, PF_EIO, NULL, 0, "cannot find photonfarm-worker beside this program");
+    if (access(exe, X_OK) != 0)
+        return pf_error_set(err, PF_EIO, exe, 0, "cannot run the worker program: %s", strerror(errno));
+    int wt = opts->worker_threads > 0 ? opts->worker_threads
+                                      : (omp_get_num_procs() / opts->local_workers > 0
+                                             ? omp_get_num_procs() / opts->local_workers
+                                             : 1);
+    char threads[16], name[64];
+    snprintf(threads, sizeof threads, "%d", wt);
+    int nloc = opts->local_workers < S_MAX_LOCAL ? opts->local_workers : S_MAX_LOCAL;
+    for (int i = 0; i < nloc; i++) {
+        snprintf(name, sizeof name, "local-%d", i + 1);
+        /* Local workers report through the coordinator (joins, losses,
+         * the summary); their own lines only for warnings, or all with -v. */
+        char *argv[] = { exe, "--connect", f->endpoint, "--threads", threads, "--name", name, "--exit-on-bye",
+                         pf_log_get_level() <= PF_LOG_DEBUG ? "-v" : "-q", NULL };
+        pid_t pid = pf_spawn(exe, argv);
+        if (pid < 0)
+            return pf_error_set(err, PF_EIO, exe, 0, "cannot start a worker: %s", strerror(errno));
+        f->pids[f->npids++] = pid;
+    }
+    pf_info("started %d local worker%s with %d thread%s each", f->npids, f->npids == 1 ? "" : "s", wt,
+            wt == 1 ? "" : "s");
+    return PF_OK;
+}
+
+/* The photon pass runs beside the event loop. */
+static int s_start_photons(s_farm *f, const pf_scene_t *scene, const pf_settings_t *s, unsigned terms,
+                           pf_error_t *err)
+{
+    f->ph.scene = scene;
+    f->ph.settings = *s;
+    f->ph.budget = f->o->budget;
+    f->ph.terms = terms;
+    if (pthread_create(&f->phtid, NULL, s_photon_thread, &f->ph) != 0)
+        return pf_error_set(err, PF_ENOMEM, NULL, 0, "cannot start the photon pass thread");
+    f->ph_started = 1;
+    return PF_OK;
+}
+
+/* The photon pass has finished: join it, and on success make the job
+ * ready and send it to the workers waiting for it. */
+static int s_on_photons_done(s_farm *f, pf_error_t *err)
+{
+    pf_farm_summary_t *sum = f->sum;
+    pthread_join(f->phtid, NULL);
+    f->ph_started = 0;
+    if (f->ph.rc != PF_OK) {
+        *err = f->ph.err;
+        return f->ph.rc;
+    }
+    sum->photons = f->ph.stats;
+    sum->photon_s = pf_now() - f->t0;
+    pf_progress_end(&f->bar);
+    pf_info("photon pass: %llu global + %llu caustic photons, %llu irradiance points; scene blob %zu bytes, "
+            "map blob %zu bytes (%.1f bytes per photon)",
+            (unsigned long long)f->ph.stats.global_stored, (unsigned long long)f->ph.stats.caustic_stored,
+            (unsigned long long)f->ph.stats.irradiance_points, f->ph.scene_blob.len, f->ph.maps_blob.len,
+            (double)f->ph.maps_blob.len /
+                (double)(f->ph.stats.global_stored + f->ph.stats.caustic_stored + f->ph.stats.irradiance_points + 1));
+    pf_settings_t s = f->ph.settings; /* as a time limit planned them */
+    f->jobmsg = (pf_msg_job_t){ f->ph.scene_hash, f->ph.scene_blob.len, f->ph.maps_hash, f->ph.maps_blob.len,
+                                s, f->ph.terms, (uint32_t)f->ts };
+    f->job_ready = 1;
+    f->render_start = pf_now();
+    pf_progress_begin(&f->bar, "render", f->o->show_progress);
+    for (int i = 0; i < f->nw; i++)
+        if (f->w[i].state == W_HELLO)
+            s_send_job(f, i);
+    return PF_OK;
+}
+
+/* Takes up to 256 queued messages off the socket without blocking, so the
+ * housekeeping after each poll is never starved. */
+static void s_recv_burst(s_farm *f)
+{
+    for (int burst = 0; burst < 256; burst++) {
+        zmq_msg_t id, body;
+        zmq_msg_init(&id);
+        if (zmq_msg_recv(&id, f->sock, ZMQ_DONTWAIT) < 0) {
+            zmq_msg_close(&id);
+            break;
+        }
+        zmq_msg_init(&body);
+        int more = zmq_msg_more(&id);
+        if (!more || zmq_msg_recv(&body, f->sock, ZMQ_DONTWAIT) < 0) {
+            s_bad(f, "a peer", "empty message");
+        } else {
+            if (zmq_msg_more(&body)) { /* our protocol is one frame; drain and drop the rest */
+                s_bad(f, "a peer", "multi-frame message");
+                while (zmq_msg_more(&body)) {
+                    zmq_msg_close(&body);
+                    zmq_msg_init(&body);
+                    zmq_msg_recv(&body, f->sock, 0);
+                }
+            } else if (zmq_msg_size(&id) <= sizeof f->w[0].id) {
+                s_on_frame(f, zmq_msg_data(&id), zmq_msg_size(&id), zmq_msg_data(&body), zmq_msg_size(&body));
+            }
+        }
+        zmq_msg_close(&body);
+        zmq_msg_close(&id);
+    }
+}
+
+/* Workers that have registered and not left or died. */
+static int s_count_alive(const s_farm *f)
+{
+    int alive = 0;
+    for (int i = 0; i < f->nw; i++)
+        alive += f->w[i].state == W_READY || f->w[i].state == W_JOB_SENT || f->w[i].state == W_HELLO;
+    return alive;
+}
+
+/* A local worker that exits on its own is reported, not waited for. */
+static void s_reap_local_workers(s_farm *f)
+{
+    for (int i = 0; i < f->npids; i++) {
+        int status;
+        if (f->pids[i] > 0 && waitpid(f->pids[i], &status, WNOHANG) == f->pids[i]) {
+            pf_warn("local worker process %d exited (%s %d)", (int)f->pids[i],
+                    WIFSIGNALED(status) ? "signal" : "status",
+                    WIFSIGNALED(status) ? WTERMSIG(status) : WEXITSTATUS(status));
+            f->pids[i] = 0;
+        }
+    }
+}
+
+/* The progress bar's note: workers alive, and the map transfers still under
+ * way; without a bar, a log line every 5 s. */
+static void s_note_progress(s_farm *f, int alive)
+{
+    char note[256];
+    int nn = snprintf(note, sizeof note, "workers %d", alive);
+    uint64_t blobs = f->ph.scene_blob.len + f->ph.maps_blob.len;
+    for (int i = 0; i < f->nw && nn < (int)sizeof note - 40; i++)
+        if (f->w[i].state == W_JOB_SENT && f->w[i].blob_sent > 0 && f->w[i].blob_sent < blobs)
+            nn += snprintf(note + nn, sizeof note - (size_t)nn, "  maps->%.12s %d%%", f->w[i].name,
+                           (int)(100.0 * (double)f->w[i].blob_sent / (double)blobs));
+    pf_progress_update_note(&f->bar, f->ndone, f->nt, note);
+    if (!f->bar.enabled && pf_now() - f->last_log > 5.0) {
+        f->last_log = pf_now();
+        pf_info("render: %d/%d tiles, %d worker%s alive", f->ndone, f->nt, alive, alive == 1 ? "" : "s");
+    }
+}
+
+/* The event loop: runs until every tile is done, *stop is set, the photon
+ * pass fails, polling fails, or no worker has been alive for max_wait_s. */
+static int s_event_loop(s_farm *f, volatile int *stop, pf_error_t *err)
+{
+    const pf_farm_opts_t *opts = f->o;
+    int rc = PF_OK;
+    pf_progress_begin(&f->bar, "photons", opts->show_progress);
+    f->render_start = 0.0;
+    f->last_log = pf_now();
+    f->no_worker_since = pf_now();
+    while (f->ndone < f->nt) {
+        if (stop && *stop) {
+            rc = pf_error_set(err, PF_EINTERRUPTED, NULL, 0, "interrupted");
+            break;
+        }
+        if (!f->job_ready && __atomic_load_n(&f->ph.done, __ATOMIC_ACQUIRE)) {
+            rc = s_on_photons_done(f, err);
+            if (rc != PF_OK)
+                break;
+        }
+        zmq_pollitem_t it = { f->sock, 0, ZMQ_POLLIN, 0 };
+        int pr = zmq_poll(&it, 1, 50);
+        if (pr < 0 && zmq_errno() != EINTR) {
+            rc = pf_error_set(err, PF_EIO, NULL, 0, "poll failed: %s", zmq_strerror(zmq_errno()));
+            break;
+        }
+        if (pr > 0)
+            s_recv_burst(f);
+        s_tick(f);
+        if (f->job_ready)
+            s_lease_all(f);
+        int alive = s_count_alive(f);
+        if (alive)
+            f->no_worker_since = pf_now();
+        else if (opts->max_wait_s > 0 && pf_now() - f->no_worker_since > opts->max_wait_s) {
+            rc = pf_error_set(err, PF_ETIMEOUT, NULL, 0, "no worker for %.0f s: giving up", opts->max_wait_s);
+            break;
+        }
+        if (f->npids)
+            s_reap_local_workers(f);
+        if (f->job_ready)
+            s_note_progress(f, alive);
+    }
+    pf_progress_end(&f->bar);
+    if (rc == PF_OK)
+        f->sum->render_s = pf_now() - f->render_start;
+    return rc;
+}
+
+/* Job over: tell everyone, then let local workers go. Workers declared
+ * dead are told too: one that was only stopped (SIGSTOP) may be back. */
+static void s_end_job(s_farm *f, int rc)
+{
+    for (int i = 0; i < f->nw; i++)
+        if (f->w[i].state != W_FREE) {
+            pf_msg_t m = { .type = PF_MSG_JOB_END };
+            s_send(f, i, &m);
+            pf_msg_t b = { .type = PF_MSG_BYE };
+            snprintf(b.u.bye.reason, sizeof b.u.bye.reason, "%s", rc == PF_OK ? "job complete" : "coordinator stopping");
+            s_send(f, i, &b);
+        }
+}
+
+/* Tiles per worker into the summary: one line per name, also for a worker
+ * that registered twice; at most 64 names. */
+static void s_sum_per_worker(s_farm *f)
+{
+    pf_farm_summary_t *sum = f->sum;
+    for (int i = 0; i < f->nw; i++) {
+        if (!f->w[i].tiles)
+            continue;
+        int k = 0;
+        while (k < sum->nper_worker && strcmp(sum->per_worker[k].name, f->w[i].name) != 0)
+            k++;
+        if (k == sum->nper_worker) {
+            if (k == 64)
+                continue;
+            snprintf(sum->per_worker[k].name, sizeof sum->per_worker[k].name, "%s", f->w[i].name);
+            sum->per_worker[k].tiles = 0;
+            sum->nper_worker++;
+        }
+        sum->per_worker[k].tiles += f->w[i].tiles;
+    }
+}
+
+/* Stops and frees whatever the steps started, on every path. */
+static void s_free(s_farm *f)
+{
+    if (f->ph_started) {
+        pthread_join(f->phtid, NULL); /* the photon pass cannot be cancelled midway; it ends on its own */
+    }
+    if (f->npids)
+        pf_spawn_stop_all(f->pids, f->npids, 3.0);
+    if (f->sock)
+        zmq_close(f->sock);
+    if (f->zap)
+        f->sum->refused += (uint64_t)pf_zap_stop(&f->zap);
+    if (f->ctx)
+        zmq_ctx_term(f->ctx);
+    pf_frame_close(&f->ph.frame);
+    pf_buf_free(&f->ph.scene_blob);
+    pf_buf_free(&f->ph.maps_blob);
+    pf_buf_free(&f->out);
+    free(f->t);
+    free(f->queue);
+    free(f->w);
+}
+
 int pf_farm_render(const pf_scene_t *scene, const pf_settings_t *settings, unsigned terms, const pf_farm_opts_t *opts,
                    volatile int *stop, pf_image_t *img, pf_farm_summary_t *sum, pf_error_t *err)
 {
@@ -525,300 +887,30 @@ int pf_farm_render(const pf_scene_t *scene, const pf_settings_t *settings, unsig
     f.o = opts;
     f.sum = sum;
     f.img = img;
+    f.t0 = t0;
     f.job = ((uint64_t)getpid() << 32) ^ (uint64_t)(t0 * 1000.0);
     if (f.job == 0)
         f.job = 1;
-    pid_t pids[S_MAX_LOCAL] = { 0 };
-    int npids = 0;
-    pf_zap_t *zap = NULL;
-    pthread_t phtid;
-    int ph_started = 0;
-    int rc = PF_OK;
 
     pf_settings_t s = *settings;
     if (s.threads <= 0)
         s.threads = omp_get_num_procs();
-    rc = pf_image_alloc(img, s.width, s.height);
+    int rc = pf_image_alloc(img, s.width, s.height);
     if (rc)
         return pf_error_set(err, rc, NULL, 0, "cannot allocate a %dx%d image", s.width, s.height);
-    int ts = opts->tile_size > 0 ? opts->tile_size : 32;
-    int tx = (s.width + ts - 1) / ts, ty = (s.height + ts - 1) / ts;
-    f.nt = tx * ty;
-    f.t = calloc((size_t)f.nt, sizeof *f.t);
-    f.queue = calloc((size_t)f.nt, sizeof *f.queue);
-    f.w = calloc(S_MAX_WORKERS, sizeof *f.w);
-    if (!f.t || !f.queue || !f.w) {
-        rc = pf_error_set(err, PF_ENOMEM, NULL, 0, "out of memory");
-        goto done;
-    }
-    for (int i = 0; i < f.nt; i++) {
-        s_tile *t = &f.t[i];
-        t->x0 = (uint32_t)((i % tx) * ts);
-        t->y0 = (uint32_t)((i / tx) * ts);
-        t->w = (uint32_t)(t->x0 + (uint32_t)ts <= (uint32_t)s.width ? ts : s.width - (int)t->x0);
-        t->h = (uint32_t)(t->y0 + (uint32_t)ts <= (uint32_t)s.height ? ts : s.height - (int)t->y0);
-        t->owner = -1;
-        f.queue[i] = i;
-    }
-    f.qlen = f.nt;
-
-    /* The socket, with CURVE and its ZAP handler when asked. */
-    f.ctx = zmq_ctx_new();
-    f.sock = f.ctx ? zmq_socket(f.ctx, ZMQ_ROUTER) : NULL;
-    if (!f.sock) {
-        rc = pf_error_set(err, PF_EIO, NULL, 0, "cannot create a ZeroMQ socket: %s", zmq_strerror(zmq_errno()));
-        goto done;
-    }
-    int one = 1, linger = 1000, hwm = 100000;
-    int64_t maxmsg = PF_PROTO_MAX_MESSAGE;
-    zmq_setsockopt(f.sock, ZMQ_ROUTER_MANDATORY, &one, sizeof one);
-    zmq_setsockopt(f.sock, ZMQ_LINGER, &linger, sizeof linger);
-    zmq_setsockopt(f.sock, ZMQ_MAXMSGSIZE, &maxmsg, sizeof maxmsg);
-    zmq_setsockopt(f.sock, ZMQ_SNDHWM, &hwm, sizeof hwm);
-    zmq_setsockopt(f.sock, ZMQ_RCVHWM, &hwm, sizeof hwm);
-    if (opts->curve_secret) {
-        char pub[41], sec[41];
-        char (*keys)[41] = NULL;
-        size_t nkeys = 0;
-        if (pf_keyfile_read(opts->curve_secret, pub, sec, err) != PF_OK) {
-            rc = PF_EINVAL;
-            goto done;
-        }
-        if (!opts->curve_allow) {
-            rc = pf_error_set(err, PF_EINVAL, NULL, 0, "CURVE needs a list of allowed worker keys (--curve-allow)");
-            goto done;
-        }
-        if (pf_keyfile_read_list(opts->curve_allow, &keys, &nkeys, err) != PF_OK) {
-            rc = PF_EINVAL;
-            goto done;
-        }
-        zap = pf_zap_start(f.ctx, (const char(*)[41])keys, nkeys);
-        free(keys);
-        if (!zap) {
-            rc = pf_error_set(err, PF_EIO, NULL, 0, "cannot start the CURVE authentication handler");
-            goto done;
-        }
-        zmq_setsockopt(f.sock, ZMQ_ZAP_DOMAIN, "photonfarm", 10);
-        zmq_setsockopt(f.sock, ZMQ_CURVE_SERVER, &one, sizeof one);
-        zmq_setsockopt(f.sock, ZMQ_CURVE_SECRETKEY, sec, 40);
-        pf_info("CURVE on: %zu worker key%s allowed", nkeys, nkeys == 1 ? "" : "s");
-    }
-    const char *bind = opts->bind ? opts->bind : "tcp://127.0.0.1:*";
-    if (zmq_bind(f.sock, bind) != 0) {
-        rc = pf_error_set(err, PF_EIO, NULL, 0, "cannot bind %s: %s", bind, zmq_strerror(zmq_errno()));
-        goto done;
-    }
-    char endpoint[256];
-    size_t eplen = sizeof endpoint;
-    zmq_getsockopt(f.sock, ZMQ_LAST_ENDPOINT, endpoint, &eplen);
-    if (!s_loopback(endpoint) && !opts->curve_secret)
-        pf_warn("listening on %s without CURVE: anyone who can reach it can join and read the scene "
-                "(see 'photonfarm keygen')", endpoint);
-    pf_info("listening on %s", endpoint);
-
-    /* Local workers, started now so they connect during the photon pass. */
-    if (opts->local_workers > 0) {
-        char exe[4096];
-        if (opts->worker_exe)
-            snprintf(exe, sizeof exe, "%s", opts->worker_exe);
-        else if (pf_spawn_default_worker_exe(exe, sizeof exe) != 0) {
-            rc = pf_error_set(err, PF_EIO, NULL, 0, "cannot find photonfarm-worker beside this program");
-            goto done;
-        }
-        if (access(exe, X_OK) != 0) {
-            rc = pf_error_set(err, PF_EIO, exe, 0, "cannot run the worker program: %s", strerror(errno));
-            goto done;
-        }
-        int wt = opts->worker_threads > 0 ? opts->worker_threads
-                                          : (omp_get_num_procs() / opts->local_workers > 0
-                                                 ? omp_get_num_procs() / opts->local_workers
-                                                 : 1);
-        char threads[16], name[64];
-        snprintf(threads, sizeof threads, "%d", wt);
-        int nloc = opts->local_workers < S_MAX_LOCAL ? opts->local_workers : S_MAX_LOCAL;
-        for (int i = 0; i < nloc; i++) {
-            snprintf(name, sizeof name, "local-%d", i + 1);
-            /* Local workers report through the coordinator (joins, losses,
-             * the summary); their own lines only for warnings, or all with -v. */
-            char *argv[] = { exe, "--connect", endpoint, "--threads", threads, "--name", name, "--exit-on-bye",
-                             pf_log_get_level() <= PF_LOG_DEBUG ? "-v" : "-q", NULL };
-            pid_t pid = pf_spawn(exe, argv);
-            if (pid < 0) {
-                rc = pf_error_set(err, PF_EIO, exe, 0, "cannot start a worker: %s", strerror(errno));
-                goto done;
-            }
-            pids[npids++] = pid;
-        }
-        pf_info("started %d local worker%s with %d thread%s each", npids, npids == 1 ? "" : "s", wt,
-                wt == 1 ? "" : "s");
-    }
-
-    /* The photon pass runs beside the event loop. */
-    f.ph.scene = scene;
-    f.ph.settings = s;
-    f.ph.budget = opts->budget;
-    f.ph.terms = terms;
-    if (pthread_create(&phtid, NULL, s_photon_thread, &f.ph) != 0) {
-        rc = pf_error_set(err, PF_ENOMEM, NULL, 0, "cannot start the photon pass thread");
-        goto done;
-    }
-    ph_started = 1;
-
-    pf_progress_t bar;
-    pf_progress_begin(&bar, "photons", opts->show_progress);
-    double render_start = 0.0, last_log = pf_now(), no_worker_since = pf_now();
-    while (f.ndone < f.nt) {
-        if (stop && *stop) {
-            rc = pf_error_set(err, PF_EINTERRUPTED, NULL, 0, "interrupted");
-            break;
-        }
-        if (!f.job_ready && __atomic_load_n(&f.ph.done, __ATOMIC_ACQUIRE)) {
-            pthread_join(phtid, NULL);
-            ph_started = 0;
-            if (f.ph.rc != PF_OK) {
-                *err = f.ph.err;
-                rc = f.ph.rc;
-                break;
-            }
-            sum->photons = f.ph.stats;
-            sum->photon_s = pf_now() - t0;
-            pf_progress_end(&bar);
-            pf_info("photon pass: %llu global + %llu caustic photons, %llu irradiance points; scene blob %zu bytes, "
-                    "map blob %zu bytes (%.1f bytes per photon)",
-                    (unsigned long long)f.ph.stats.global_stored, (unsigned long long)f.ph.stats.caustic_stored,
-                    (unsigned long long)f.ph.stats.irradiance_points, f.ph.scene_blob.len, f.ph.maps_blob.len,
-                    (double)f.ph.maps_blob.len /
-                        (double)(f.ph.stats.global_stored + f.ph.stats.caustic_stored + f.ph.stats.irradiance_points + 1));
-            s = f.ph.settings; /* as a time limit planned them */
-            f.jobmsg = (pf_msg_job_t){ f.ph.scene_hash, f.ph.scene_blob.len, f.ph.maps_hash, f.ph.maps_blob.len,
-                                       s, terms, (uint32_t)ts };
-            f.job_ready = 1;
-            render_start = pf_now();
-            pf_progress_begin(&bar, "render", opts->show_progress);
-            for (int i = 0; i < f.nw; i++)
-                if (f.w[i].state == W_HELLO)
-                    s_send_job(&f, i);
-        }
-        zmq_pollitem_t it = { f.sock, 0, ZMQ_POLLIN, 0 };
-        int pr = zmq_poll(&it, 1, 50);
-        if (pr < 0 && zmq_errno() != EINTR) {
-            rc = pf_error_set(err, PF_EIO, NULL, 0, "poll failed: %s", zmq_strerror(zmq_errno()));
-            break;
-        }
-        for (int burst = 0; pr > 0 && burst < 256; burst++) {
-            zmq_msg_t id, body;
-            zmq_msg_init(&id);
-            if (zmq_msg_recv(&id, f.sock, ZMQ_DONTWAIT) < 0) {
-                zmq_msg_close(&id);
-                break;
-            }
-            zmq_msg_init(&body);
-            int more = zmq_msg_more(&id);
-            if (!more || zmq_msg_recv(&body, f.sock, ZMQ_DONTWAIT) < 0) {
-                s_bad(&f, "a peer", "empty message");
-            } else {
-                if (zmq_msg_more(&body)) { /* our protocol is one frame; drain and drop the rest */
-                    s_bad(&f, "a peer", "multi-frame message");
-                    while (zmq_msg_more(&body)) {
-                        zmq_msg_close(&body);
-                        zmq_msg_init(&body);
-                        zmq_msg_recv(&body, f.sock, 0);
-                    }
-                } else if (zmq_msg_size(&id) <= sizeof f.w[0].id) {
-                    s_on_frame(&f, zmq_msg_data(&id), zmq_msg_size(&id), zmq_msg_data(&body), zmq_msg_size(&body));
-                }
-            }
-            zmq_msg_close(&body);
-            zmq_msg_close(&id);
-        }
-        s_tick(&f);
-        if (f.job_ready)
-            s_lease_all(&f);
-        int alive = 0;
-        for (int i = 0; i < f.nw; i++)
-            alive += f.w[i].state == W_READY || f.w[i].state == W_JOB_SENT || f.w[i].state == W_HELLO;
-        if (alive)
-            no_worker_since = pf_now();
-        else if (opts->max_wait_s > 0 && pf_now() - no_worker_since > opts->max_wait_s) {
-            rc = pf_error_set(err, PF_ETIMEOUT, NULL, 0, "no worker for %.0f s: giving up", opts->max_wait_s);
-            break;
-        }
-        if (npids) { /* a local worker that exits on its own is reported, not waited for */
-            for (int i = 0; i < npids; i++) {
-                int status;
-                if (pids[i] > 0 && waitpid(pids[i], &status, WNOHANG) == pids[i]) {
-                    pf_warn("local worker process %d exited (%s %d)", (int)pids[i],
-                            WIFSIGNALED(status) ? "signal" : "status",
-                            WIFSIGNALED(status) ? WTERMSIG(status) : WEXITSTATUS(status));
-                    pids[i] = 0;
-                }
-            }
-        }
-        if (f.job_ready) {
-            /* Workers alive, and the map transfers still under way. */
-            char note[256];
-            int nn = snprintf(note, sizeof note, "workers %d", alive);
-            uint64_t blobs = f.ph.scene_blob.len + f.ph.maps_blob.len;
-            for (int i = 0; i < f.nw && nn < (int)sizeof note - 40; i++)
-                if (f.w[i].state == W_JOB_SENT && f.w[i].blob_sent > 0 && f.w[i].blob_sent < blobs)
-                    nn += snprintf(note + nn, sizeof note - (size_t)nn, "  maps->%.12s %d%%", f.w[i].name,
-                                   (int)(100.0 * (double)f.w[i].blob_sent / (double)blobs));
-            pf_progress_update_note(&bar, f.ndone, f.nt, note);
-            if (!bar.enabled && pf_now() - last_log > 5.0) {
-                last_log = pf_now();
-                pf_info("render: %d/%d tiles, %d worker%s alive", f.ndone, f.nt, alive, alive == 1 ? "" : "s");
-            }
-        }
-    }
-    pf_progress_end(&bar);
+    rc = s_alloc_tables(&f, &s, err);
     if (rc == PF_OK)
-        sum->render_s = pf_now() - render_start;
-
-    /* Job over: tell everyone, then let local workers go. Workers declared
-     * dead are told too: one that was only stopped (SIGSTOP) may be back. */
-    for (int i = 0; i < f.nw; i++)
-        if (f.w[i].state != W_FREE) {
-            pf_msg_t m = { .type = PF_MSG_JOB_END };
-            s_send(&f, i, &m);
-            pf_msg_t b = { .type = PF_MSG_BYE };
-            snprintf(b.u.bye.reason, sizeof b.u.bye.reason, "%s", rc == PF_OK ? "job complete" : "coordinator stopping");
-            s_send(&f, i, &b);
-        }
-    for (int i = 0; i < f.nw; i++) { /* one line per name, also for a worker that registered twice */
-        if (!f.w[i].tiles)
-            continue;
-        int k = 0;
-        while (k < sum->nper_worker && strcmp(sum->per_worker[k].name, f.w[i].name) != 0)
-            k++;
-        if (k == sum->nper_worker) {
-            if (k == 64)
-                continue;
-            snprintf(sum->per_worker[k].name, sizeof sum->per_worker[k].name, "%s", f.w[i].name);
-            sum->per_worker[k].tiles = 0;
-            sum->nper_worker++;
-        }
-        sum->per_worker[k].tiles += f.w[i].tiles;
+        rc = s_open_socket(&f, err);
+    if (rc == PF_OK)
+        rc = s_start_local_workers(&f, err);
+    if (rc == PF_OK)
+        rc = s_start_photons(&f, scene, &s, terms, err);
+    if (rc == PF_OK) {
+        rc = s_event_loop(&f, stop, err);
+        s_end_job(&f, rc);
+        s_sum_per_worker(&f);
     }
-
-done:
-    if (ph_started) {
-        pthread_join(phtid, NULL); /* the photon pass cannot be cancelled midway; it ends on its own */
-    }
-    if (npids)
-        pf_spawn_stop_all(pids, npids, 3.0);
-    if (f.sock)
-        zmq_close(f.sock);
-    if (zap)
-        sum->refused += (uint64_t)pf_zap_stop(&zap);
-    if (f.ctx)
-        zmq_ctx_term(f.ctx);
-    pf_frame_close(&f.ph.frame);
-    pf_buf_free(&f.ph.scene_blob);
-    pf_buf_free(&f.ph.maps_blob);
-    pf_buf_free(&f.out);
-    free(f.t);
-    free(f.queue);
-    free(f.w);
+    s_free(&f);
     if (rc != PF_OK) {
         pf_image_free(img);
     } else {

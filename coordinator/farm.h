@@ -9,10 +9,10 @@
 
 #include <stdint.h>
 
-#include "image/image.h"
-#include "scene/scene.h"
 #include "coordinator/budget.h"
+#include "image/image.h"
 #include "photon/trace.h"
+#include "scene/scene.h"
 
 typedef struct pf_farm_opts {
     const char *bind;         /* endpoint to bind; NULL: tcp://127.0.0.1:* (loopback, ephemeral port) */

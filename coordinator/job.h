@@ -1,15 +1,16 @@
 /* job.h: one render job in this process: load nothing, own nothing from the
  * caller; build the Embree structure, run the photon pass, render the tiles
- * and return the image with a summary. The farm (issue 3) splits the same
- * steps between coordinator and workers. */
+ * and return the image with a summary. The farm (farm.h) splits the same
+ * steps between coordinator and workers: the coordinator runs the photon
+ * pass, the workers rebuild the frame from its blobs and render the tiles. */
 #ifndef PF_JOB_H
 #define PF_JOB_H
 
-#include "image/image.h"
-#include "scene/scene.h"
 #include "coordinator/budget.h"
+#include "image/image.h"
 #include "photon/trace.h"
 #include "render/render.h"
+#include "scene/scene.h"
 
 typedef struct pf_job_summary {
     pf_photon_stats_t photons;

@@ -1,7 +1,8 @@
-/* main.c: the photonfarm command line: `render` (in-process for now; the farm
- * of workers arrives with issue 3) and `compare`. Exit codes: 0 success,
- * 1 render failure, 2 usage error, 3 unreadable or malformed input,
- * 4 image sizes do not fit (compare). */
+/* main.c: the photonfarm command line: `render` (in this process, or through
+ * a farm of worker processes with --workers or --bind; see farm.h),
+ * `compare` and `keygen`. Exit codes: 0 success, 1 render failure, 2 usage
+ * error, 3 unreadable or malformed input, 4 image sizes do not fit
+ * (compare), 130 a farm render interrupted by SIGINT or SIGTERM. */
 #include <errno.h>
 #include <omp.h>
 #include <getopt.h>
@@ -10,14 +11,14 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "image/image.h"
-#include "base/log.h"
-#include "load/load.h"
-#include "scene/scene.h"
 #include "base/keyfile.h"
+#include "base/log.h"
 #include "coordinator/compare.h"
 #include "coordinator/farm.h"
 #include "coordinator/job.h"
+#include "image/image.h"
+#include "load/load.h"
+#include "scene/scene.h"
 
 #include <signal.h>
 #include <zmq.h>
@@ -200,88 +201,114 @@ static void s_on_signal(int sig)
     s_interrupted = 1;
 }
 
-static int s_cmd_render(int argc, char **argv)
-{
-    static const struct option opts[] = {
-        { "output", required_argument, 0, 'o' },        { "hdr", required_argument, 0, OPT_HDR },
-        { "size", required_argument, 0, OPT_SIZE },      { "spp", required_argument, 0, OPT_SPP },
-        { "photons", required_argument, 0, OPT_PHOTONS }, { "caustic-photons", required_argument, 0, OPT_CPHOTONS },
-        { "gather", required_argument, 0, OPT_GATHER },  { "light-samples", required_argument, 0, OPT_LSAMPLES },
-        { "gather-filter", required_argument, 0, OPT_GFILTER },
-        { "global-k", required_argument, 0, OPT_GK },    { "caustic-k", required_argument, 0, OPT_CK },
-        { "caustic-radius", required_argument, 0, OPT_CR }, { "max-depth", required_argument, 0, OPT_DEPTH },
-        { "threads", required_argument, 0, OPT_THREADS }, { "seed", required_argument, 0, OPT_SEED },
-        { "exposure", required_argument, 0, OPT_EXPOSURE }, { "terms", required_argument, 0, OPT_TERMS },
-        { "quiet", no_argument, 0, 'q' },                { "verbose", no_argument, 0, 'v' },
-        { "help", no_argument, 0, 'h' },                 { "workers", required_argument, 0, OPT_WORKERS },
-        { "bind", required_argument, 0, OPT_BIND },      { "min-workers", required_argument, 0, OPT_MINW },
-        { "curve-secret", required_argument, 0, OPT_CSECRET }, { "curve-allow", required_argument, 0, OPT_CALLOW },
-        { "tile", required_argument, 0, OPT_TILE },      { "heartbeat-ms", required_argument, 0, OPT_HB },
-        { "watchdog", required_argument, 0, OPT_WATCHDOG }, { "max-wait", required_argument, 0, OPT_MAXWAIT },
-        { "worker-exe", required_argument, 0, OPT_WEXE }, { "time-limit", required_argument, 0, OPT_TLIMIT },
-        { "quality", required_argument, 0, OPT_QUALITY }, { 0, 0, 0, 0 },
-    };
-    /* Command-line settings are applied over the scene's after it loads. */
-    struct {
-        int w, h, spp, gather, gfilter, ls, gk, ck, depth, threads;
-        uint64_t photons, cphotons, seed;
-        float cr, exposure;
-        int has_w, has_spp, has_gather, has_gfilter, has_ls, has_gk, has_ck, has_depth, has_threads, has_photons, has_cphotons,
-            has_seed, has_cr, has_exposure;
-    } o;
-    memset(&o, 0, sizeof o);
-    const char *out = NULL, *hdr = NULL;
-    unsigned terms = PF_TERM_ALL;
+static const struct option s_render_opts[] = {
+    { "output", required_argument, 0, 'o' },        { "hdr", required_argument, 0, OPT_HDR },
+    { "size", required_argument, 0, OPT_SIZE },      { "spp", required_argument, 0, OPT_SPP },
+    { "photons", required_argument, 0, OPT_PHOTONS }, { "caustic-photons", required_argument, 0, OPT_CPHOTONS },
+    { "gather", required_argument, 0, OPT_GATHER },  { "light-samples", required_argument, 0, OPT_LSAMPLES },
+    { "gather-filter", required_argument, 0, OPT_GFILTER },
+    { "global-k", required_argument, 0, OPT_GK },    { "caustic-k", required_argument, 0, OPT_CK },
+    { "caustic-radius", required_argument, 0, OPT_CR }, { "max-depth", required_argument, 0, OPT_DEPTH },
+    { "threads", required_argument, 0, OPT_THREADS }, { "seed", required_argument, 0, OPT_SEED },
+    { "exposure", required_argument, 0, OPT_EXPOSURE }, { "terms", required_argument, 0, OPT_TERMS },
+    { "quiet", no_argument, 0, 'q' },                { "verbose", no_argument, 0, 'v' },
+    { "help", no_argument, 0, 'h' },                 { "workers", required_argument, 0, OPT_WORKERS },
+    { "bind", required_argument, 0, OPT_BIND },      { "min-workers", required_argument, 0, OPT_MINW },
+    { "curve-secret", required_argument, 0, OPT_CSECRET }, { "curve-allow", required_argument, 0, OPT_CALLOW },
+    { "tile", required_argument, 0, OPT_TILE },      { "heartbeat-ms", required_argument, 0, OPT_HB },
+    { "watchdog", required_argument, 0, OPT_WATCHDOG }, { "max-wait", required_argument, 0, OPT_MAXWAIT },
+    { "worker-exe", required_argument, 0, OPT_WEXE }, { "time-limit", required_argument, 0, OPT_TLIMIT },
+    { "quality", required_argument, 0, OPT_QUALITY }, { 0, 0, 0, 0 },
+};
+
+/* Command-line settings are applied over the scene's after it loads; has_x
+ * says x was given. */
+typedef struct s_cli_settings {
+    int w, h, spp, gather, gfilter, ls, gk, ck, depth, threads;
+    uint64_t photons, cphotons, seed;
+    float cr, exposure;
+    int has_w, has_spp, has_gather, has_gfilter, has_ls, has_gk, has_ck, has_depth, has_threads, has_photons, has_cphotons,
+        has_seed, has_cr, has_exposure;
+} s_cli_settings;
+
+/* Everything `photonfarm render` was told. */
+typedef struct s_render_args {
+    s_cli_settings o;
+    const char *path, *out, *hdr;
+    char outbuf[1024]; /* the default output name, when -o is not given */
+    unsigned terms;
     pf_farm_opts_t farm;
-    pf_farm_opts_default(&farm);
-    int workers = 0;
-    float fval = 0, time_limit = 0;
-    const pf_quality_t *quality = NULL;
+    int workers;
+    float time_limit;
+    const pf_quality_t *quality;
+} s_render_args;
+
+/* The long name of the render option whose getopt value is c, for an error
+ * message. */
+static const char *s_render_opt_name(int c)
+{
+    const char *name = "?";
+    for (const struct option *op = s_render_opts; op->name; op++)
+        if (op->val == c)
+            name = op->name;
+    return name;
+}
+
+/* Parses the render command's options and its SCENE argument into *a.
+ * Returns -1 to go on with the render, else the exit code (0 for --help). */
+static int s_parse_render_args(int argc, char **argv, s_render_args *a)
+{
+    memset(a, 0, sizeof *a);
+    s_cli_settings *o = &a->o;
+    pf_farm_opts_t *farm = &a->farm;
+    a->terms = PF_TERM_ALL;
+    pf_farm_opts_default(farm);
+    float fval = 0;
     int c;
     optind = 1;
     opterr = 0;
-    while ((c = getopt_long(argc, argv, ":o:qvh", opts, NULL)) != -1) {
+    while ((c = getopt_long(argc, argv, ":o:qvh", s_render_opts, NULL)) != -1) {
         int bad = 0;
         switch (c) {
-        case 'o': out = optarg; break;
-        case OPT_HDR: hdr = optarg; break;
+        case 'o': a->out = optarg; break;
+        case OPT_HDR: a->hdr = optarg; break;
         case OPT_SIZE:
             {
                 char tail = 0;
-                bad = sscanf(optarg, "%dx%d%c", &o.w, &o.h, &tail) != 2 || o.w <= 0 || o.h <= 0 || o.w > 65536 ||
-                      o.h > 65536;
+                bad = sscanf(optarg, "%dx%d%c", &o->w, &o->h, &tail) != 2 || o->w <= 0 || o->h <= 0 || o->w > 65536 ||
+                      o->h > 65536;
             }
-            o.has_w = 1;
+            o->has_w = 1;
             break;
-        case OPT_SPP: bad = s_parse_int(optarg, 1, 1 << 20, &o.spp); o.has_spp = 1; break;
-        case OPT_PHOTONS: bad = s_parse_u64(optarg, &o.photons) || o.photons > (1ull << 31); o.has_photons = 1; break;
-        case OPT_CPHOTONS: bad = s_parse_u64(optarg, &o.cphotons) || o.cphotons > (1ull << 31); o.has_cphotons = 1; break;
-        case OPT_GATHER: bad = s_parse_int(optarg, 0, 1 << 16, &o.gather); o.has_gather = 1; break;
+        case OPT_SPP: bad = s_parse_int(optarg, 1, 1 << 20, &o->spp); o->has_spp = 1; break;
+        case OPT_PHOTONS: bad = s_parse_u64(optarg, &o->photons) || o->photons > (1ull << 31); o->has_photons = 1; break;
+        case OPT_CPHOTONS: bad = s_parse_u64(optarg, &o->cphotons) || o->cphotons > (1ull << 31); o->has_cphotons = 1; break;
+        case OPT_GATHER: bad = s_parse_int(optarg, 0, 1 << 16, &o->gather); o->has_gather = 1; break;
         case OPT_GFILTER:
-            bad = s_parse_int(optarg, 0, PF_MAX_GATHER_FILTER, &o.gfilter);
-            o.has_gfilter = 1;
+            bad = s_parse_int(optarg, 0, PF_MAX_GATHER_FILTER, &o->gfilter);
+            o->has_gfilter = 1;
             break;
-        case OPT_LSAMPLES: bad = s_parse_int(optarg, 1, 1 << 10, &o.ls); o.has_ls = 1; break;
-        case OPT_GK: bad = s_parse_int(optarg, 1, 1024, &o.gk); o.has_gk = 1; break;
-        case OPT_CK: bad = s_parse_int(optarg, 1, 1024, &o.ck); o.has_ck = 1; break;
-        case OPT_CR: bad = s_parse_float(optarg, &o.cr) || o.cr < 0; o.has_cr = 1; break;
-        case OPT_DEPTH: bad = s_parse_int(optarg, 0, 1000, &o.depth); o.has_depth = 1; break;
-        case OPT_THREADS: bad = s_parse_int(optarg, 0, 4096, &o.threads); o.has_threads = 1; break;
-        case OPT_SEED: bad = s_parse_u64(optarg, &o.seed); o.has_seed = 1; break;
-        case OPT_EXPOSURE: bad = s_parse_float(optarg, &o.exposure); o.has_exposure = 1; break;
-        case OPT_TERMS: bad = s_parse_terms(optarg, &terms); break;
-        case OPT_WORKERS: bad = s_parse_int(optarg, 0, 256, &workers); break;
-        case OPT_BIND: farm.bind = optarg; break;
-        case OPT_MINW: bad = s_parse_int(optarg, 1, 1024, &farm.min_workers); break;
-        case OPT_CSECRET: farm.curve_secret = optarg; break;
-        case OPT_CALLOW: farm.curve_allow = optarg; break;
-        case OPT_TILE: bad = s_parse_int(optarg, 1, 256, &farm.tile_size); break;
-        case OPT_HB: bad = s_parse_int(optarg, 10, 60000, &farm.heartbeat_ms); break;
-        case OPT_WATCHDOG: bad = s_parse_float(optarg, &fval) || fval <= 0; farm.watchdog_s = fval; break;
-        case OPT_MAXWAIT: bad = s_parse_float(optarg, &fval) || fval < 0; farm.max_wait_s = fval; break;
-        case OPT_WEXE: farm.worker_exe = optarg; break;
-        case OPT_TLIMIT: bad = s_parse_float(optarg, &time_limit) || time_limit <= 0 || time_limit > 1e7; break;
-        case OPT_QUALITY: bad = (quality = s_find_quality(optarg)) == NULL; break;
+        case OPT_LSAMPLES: bad = s_parse_int(optarg, 1, 1 << 10, &o->ls); o->has_ls = 1; break;
+        case OPT_GK: bad = s_parse_int(optarg, 1, 1024, &o->gk); o->has_gk = 1; break;
+        case OPT_CK: bad = s_parse_int(optarg, 1, 1024, &o->ck); o->has_ck = 1; break;
+        case OPT_CR: bad = s_parse_float(optarg, &o->cr) || o->cr < 0; o->has_cr = 1; break;
+        case OPT_DEPTH: bad = s_parse_int(optarg, 0, 1000, &o->depth); o->has_depth = 1; break;
+        case OPT_THREADS: bad = s_parse_int(optarg, 0, 4096, &o->threads); o->has_threads = 1; break;
+        case OPT_SEED: bad = s_parse_u64(optarg, &o->seed); o->has_seed = 1; break;
+        case OPT_EXPOSURE: bad = s_parse_float(optarg, &o->exposure); o->has_exposure = 1; break;
+        case OPT_TERMS: bad = s_parse_terms(optarg, &a->terms); break;
+        case OPT_WORKERS: bad = s_parse_int(optarg, 0, 256, &a->workers); break;
+        case OPT_BIND: farm->bind = optarg; break;
+        case OPT_MINW: bad = s_parse_int(optarg, 1, 1024, &farm->min_workers); break;
+        case OPT_CSECRET: farm->curve_secret = optarg; break;
+        case OPT_CALLOW: farm->curve_allow = optarg; break;
+        case OPT_TILE: bad = s_parse_int(optarg, 1, 256, &farm->tile_size); break;
+        case OPT_HB: bad = s_parse_int(optarg, 10, 60000, &farm->heartbeat_ms); break;
+        case OPT_WATCHDOG: bad = s_parse_float(optarg, &fval) || fval <= 0; farm->watchdog_s = fval; break;
+        case OPT_MAXWAIT: bad = s_parse_float(optarg, &fval) || fval < 0; farm->max_wait_s = fval; break;
+        case OPT_WEXE: farm->worker_exe = optarg; break;
+        case OPT_TLIMIT: bad = s_parse_float(optarg, &a->time_limit) || a->time_limit <= 0 || a->time_limit > 1e7; break;
+        case OPT_QUALITY: bad = (a->quality = s_find_quality(optarg)) == NULL; break;
         case 'q': pf_log_set_level(PF_LOG_ERROR); break;
         case 'v': pf_log_set_level(PF_LOG_DEBUG); break;
         case 'h': s_usage(stdout); return 0;
@@ -293,11 +320,8 @@ static int s_cmd_render(int argc, char **argv)
             return EXIT_USAGE;
         }
         if (bad) {
-            const char *name = "?";
-            for (const struct option *op = opts; op->name; op++)
-                if (op->val == c)
-                    name = op->name;
-            fprintf(stderr, "photonfarm render: bad value '%s' for --%s (see 'photonfarm --help')\n", optarg, name);
+            fprintf(stderr, "photonfarm render: bad value '%s' for --%s (see 'photonfarm --help')\n", optarg,
+                    s_render_opt_name(c));
             return EXIT_USAGE;
         }
     }
@@ -305,20 +329,20 @@ static int s_cmd_render(int argc, char **argv)
         fprintf(stderr, "photonfarm render: expected one SCENE argument (see 'photonfarm --help')\n");
         return EXIT_USAGE;
     }
-    const char *path = argv[optind];
-    char outbuf[1024];
-    if (!out) {
-        s_default_output(path, outbuf, sizeof outbuf);
-        out = outbuf;
+    a->path = argv[optind];
+    if (!a->out) {
+        s_default_output(a->path, a->outbuf, sizeof a->outbuf);
+        a->out = a->outbuf;
     }
+    return -1;
+}
 
-    double t0 = pf_now();
-    pf_error_t err = { { 0 } };
-    pf_scene_t *scene = pf_scene_load(path, &err);
-    if (!scene) {
-        pf_error("%s", err.msg);
-        return EXIT_INPUT;
-    }
+/* The settings to render with: the scene's, then a --quality preset, then
+ * the budget's sampling choices under a time limit, then each option given. */
+static pf_settings_t s_render_settings(const pf_scene_t *scene, const s_render_args *a)
+{
+    const s_cli_settings *o = &a->o;
+    const pf_quality_t *quality = a->quality;
     pf_settings_t s = scene->settings;
     if (quality) {
         s.spp = quality->spp;
@@ -328,112 +352,169 @@ static int s_cmd_render(int argc, char **argv)
         s.photons = quality->photons;
         s.caustic_photons = quality->caustic_photons;
     }
-    if (time_limit > 0) {
-        if (!o.has_gather) s.gather = PF_BUDGET_GATHER;
-        if (!o.has_ls) s.light_samples = PF_BUDGET_LIGHT_SAMPLES;
-        if (!o.has_gfilter) s.gather_filter = PF_BUDGET_GATHER_FILTER;
+    if (a->time_limit > 0) {
+        if (!o->has_gather) s.gather = PF_BUDGET_GATHER;
+        if (!o->has_ls) s.light_samples = PF_BUDGET_LIGHT_SAMPLES;
+        if (!o->has_gfilter) s.gather_filter = PF_BUDGET_GATHER_FILTER;
     }
-    if (o.has_w) { s.width = o.w; s.height = o.h; }
-    if (o.has_spp) s.spp = o.spp;
-    if (o.has_photons) s.photons = o.photons;
-    if (o.has_cphotons) s.caustic_photons = o.cphotons;
-    if (o.has_gather) s.gather = o.gather;
-    if (o.has_ls) s.light_samples = o.ls;
-    if (o.has_gfilter) s.gather_filter = o.gfilter;
-    if (o.has_gk) s.global_k = o.gk;
-    if (o.has_ck) s.caustic_k = o.ck;
-    if (o.has_cr) s.caustic_radius = o.cr;
-    if (o.has_depth) s.max_depth = o.depth;
-    if (o.has_threads) s.threads = o.threads;
-    if (o.has_seed) s.seed = o.seed;
-    if (o.has_exposure) s.exposure = o.exposure;
+    if (o->has_w) { s.width = o->w; s.height = o->h; }
+    if (o->has_spp) s.spp = o->spp;
+    if (o->has_photons) s.photons = o->photons;
+    if (o->has_cphotons) s.caustic_photons = o->cphotons;
+    if (o->has_gather) s.gather = o->gather;
+    if (o->has_ls) s.light_samples = o->ls;
+    if (o->has_gfilter) s.gather_filter = o->gfilter;
+    if (o->has_gk) s.global_k = o->gk;
+    if (o->has_ck) s.caustic_k = o->ck;
+    if (o->has_cr) s.caustic_radius = o->cr;
+    if (o->has_depth) s.max_depth = o->depth;
+    if (o->has_threads) s.threads = o->threads;
+    if (o->has_seed) s.seed = o->seed;
+    if (o->has_exposure) s.exposure = o->exposure;
+    return s;
+}
+
+/* Logs the scene and the settings; under a time limit, sets up *budget for
+ * the threads that will render (all workers together) first. */
+static void s_plan(const pf_scene_t *scene, const s_render_args *a, const pf_settings_t *s, double t0,
+                   pf_budget_t *budget)
+{
+    const s_cli_settings *o = &a->o;
+    int workers = a->workers;
+    float time_limit = a->time_limit;
     size_t ntris = 0;
     for (size_t i = 0; i < scene->nmeshes; i++)
         ntris += scene->meshes[i].ntris;
-    pf_info("scene %s: %zu triangles, %zu spheres, %zu materials, %zu point/spot lights (%.2f s to load)", path, ntris,
+    pf_info("scene %s: %zu triangles, %zu spheres, %zu materials, %zu point/spot lights (%.2f s to load)", a->path, ntris,
             scene->nspheres, scene->nmats, scene->nlights, pf_now() - t0);
-    pf_budget_t budget;
     if (time_limit > 0) {
         int render_threads;
         if (workers > 0)
-            render_threads = workers * (o.has_threads && o.threads > 0 ? o.threads
+            render_threads = workers * (o->has_threads && o->threads > 0 ? o->threads
                                         : omp_get_num_procs() / workers > 0 ? omp_get_num_procs() / workers : 1);
-        else if (farm.bind)
-            render_threads = farm.min_workers * omp_get_num_procs(); /* assumed: remote workers like this machine */
+        else if (a->farm.bind)
+            render_threads = a->farm.min_workers * omp_get_num_procs(); /* assumed: remote workers like this machine */
         else
-            render_threads = o.has_threads && o.threads > 0 ? o.threads : omp_get_num_procs();
-        pf_budget_init(&budget, t0, time_limit, render_threads, workers > 0 || farm.bind ? farm.tile_size : 32);
-        budget.fix_photons = o.has_photons;
-        budget.fix_caustic = o.has_cphotons;
-        budget.fix_spp = o.has_spp;
+            render_threads = o->has_threads && o->threads > 0 ? o->threads : omp_get_num_procs();
+        pf_budget_init(budget, t0, time_limit, render_threads, workers > 0 || a->farm.bind ? a->farm.tile_size : 32);
+        budget->fix_photons = o->has_photons;
+        budget->fix_caustic = o->has_cphotons;
+        budget->fix_spp = o->has_spp;
         pf_info("settings: %dx%d, time limit %.3g s (photons and spp chosen below), %d gather rays (filter %d), "
                 "%d light samples, seed %" PRIu64,
-                s.width, s.height, time_limit, s.gather, s.gather_filter, s.light_samples, s.seed);
+                s->width, s->height, time_limit, s->gather, s->gather_filter, s->light_samples, s->seed);
     } else {
         pf_info("settings: %dx%d, %d spp, %" PRIu64 " global + %" PRIu64
                 " caustic photons, %d gather rays (filter %d), %d light samples, seed %" PRIu64 "%s%s",
-                s.width, s.height, s.spp, s.photons, s.caustic_photons, s.gather, s.gather_filter, s.light_samples, s.seed,
-                quality ? ", quality " : "", quality ? quality->name : "");
+                s->width, s->height, s->spp, s->photons, s->caustic_photons, s->gather, s->gather_filter, s->light_samples,
+                s->seed, a->quality ? ", quality " : "", a->quality ? a->quality->name : "");
     }
+}
 
-    pf_image_t img = { 0 };
-    pf_job_summary_t sum;
-    memset(&sum, 0, sizeof sum);
-    int rc;
-    if (workers > 0 || farm.bind) {
-        /* The farm: --threads is per local worker; the photon pass uses every core here. */
-        farm.local_workers = workers;
-        farm.worker_threads = o.has_threads ? o.threads : 0;
-        farm.show_progress = 1;
-        farm.budget = time_limit > 0 ? &budget : NULL;
-        s.threads = 0;
-        struct sigaction sa;
-        memset(&sa, 0, sizeof sa);
-        sa.sa_handler = s_on_signal;
-        sigaction(SIGINT, &sa, NULL);
-        sigaction(SIGTERM, &sa, NULL);
-        signal(SIGPIPE, SIG_IGN);
-        pf_farm_summary_t fs;
-        rc = pf_farm_render(scene, &s, terms, &farm, &s_interrupted, &img, &fs, &err);
-        pf_scene_destroy(&scene);
-        if (rc != PF_OK) {
-            pf_error("render failed: %s", err.msg);
-            return rc == PF_EINTERRUPTED ? 130 : EXIT_RENDER;
-        }
-        pf_farm_summary_log(&fs);
-        sum.bad_pixels = fs.bad_pixels;
-        sum.threads = s.threads;
-        sum.accel_s = 0;
-        sum.photons = fs.photons;
-        sum.render_s = fs.render_s;
-    } else {
-        rc = pf_job_render(scene, &s, terms, 1, time_limit > 0 ? &budget : NULL, &img, &sum, &err);
-        pf_scene_destroy(&scene);
-        if (rc != PF_OK) {
-            pf_error("render failed: %s", err.msg);
-            return EXIT_RENDER;
-        }
-    }
-    if (sum.bad_pixels)
-        pf_warn("%zu image channels were non-finite or negative", sum.bad_pixels);
-    if (sum.dropped_samples)
-        pf_warn("%" PRIu64 " camera samples were non-finite or negative and left out of their pixels",
-                sum.dropped_samples);
-    rc = pf_image_write_png(&img, out, s.exposure, &err);
-    if (rc == PF_OK && hdr)
-        rc = pf_image_write_pfm(&img, hdr, &err);
-    pf_image_free(&img);
+/* The farm: --threads is per local worker; the photon pass uses every core
+ * here. Takes *scene_p. Returns 0, or the exit code of a failed render. */
+static int s_render_farm(pf_scene_t **scene_p, s_render_args *a, pf_budget_t *budget, pf_settings_t *s,
+                         pf_image_t *img, pf_job_summary_t *sum, pf_error_t *err)
+{
+    pf_farm_opts_t *farm = &a->farm;
+    farm->local_workers = a->workers;
+    farm->worker_threads = a->o.has_threads ? a->o.threads : 0;
+    farm->show_progress = 1;
+    farm->budget = a->time_limit > 0 ? budget : NULL;
+    s->threads = 0;
+    struct sigaction sa;
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = s_on_signal;
+    sigaction(SIGINT, &sa, NULL);
+    sigaction(SIGTERM, &sa, NULL);
+    signal(SIGPIPE, SIG_IGN);
+    pf_farm_summary_t fs;
+    int rc = pf_farm_render(*scene_p, s, a->terms, farm, &s_interrupted, img, &fs, err);
+    pf_scene_destroy(scene_p);
     if (rc != PF_OK) {
-        pf_error("%s", err.msg);
+        pf_error("render failed: %s", err->msg);
+        return rc == PF_EINTERRUPTED ? 130 : EXIT_RENDER;
+    }
+    pf_farm_summary_log(&fs);
+    sum->bad_pixels = fs.bad_pixels;
+    sum->threads = s->threads;
+    sum->accel_s = 0;
+    sum->photons = fs.photons;
+    sum->render_s = fs.render_s;
+    return 0;
+}
+
+/* The render in this process. Takes *scene_p. Returns 0, or the exit code
+ * of a failed render. */
+static int s_render_here(pf_scene_t **scene_p, const s_render_args *a, pf_budget_t *budget, const pf_settings_t *s,
+                         pf_image_t *img, pf_job_summary_t *sum, pf_error_t *err)
+{
+    int rc = pf_job_render(*scene_p, s, a->terms, 1, a->time_limit > 0 ? budget : NULL, img, sum, err);
+    pf_scene_destroy(scene_p);
+    if (rc != PF_OK) {
+        pf_error("render failed: %s", err->msg);
+        return EXIT_RENDER;
+    }
+    return 0;
+}
+
+/* Warns about bad samples, writes the PNG (and the PFM with --hdr), frees
+ * *img and logs the times. Returns the command's exit code. */
+static int s_write_output(const s_render_args *a, const pf_settings_t *s, pf_image_t *img,
+                          const pf_job_summary_t *sum, double t0, pf_error_t *err)
+{
+    const char *out = a->out, *hdr = a->hdr;
+    float time_limit = a->time_limit;
+    if (sum->bad_pixels)
+        pf_warn("%zu image channels were non-finite or negative", sum->bad_pixels);
+    if (sum->dropped_samples)
+        pf_warn("%" PRIu64 " camera samples were non-finite or negative and left out of their pixels",
+                sum->dropped_samples);
+    int rc = pf_image_write_png(img, out, s->exposure, err);
+    if (rc == PF_OK && hdr)
+        rc = pf_image_write_pfm(img, hdr, err);
+    pf_image_free(img);
+    if (rc != PF_OK) {
+        pf_error("%s", err->msg);
         return EXIT_RENDER;
     }
     double total = pf_now() - t0;
     pf_info("done in %.2f s: photons %.2f s, render %.2f s -> %s%s%s", total,
-            sum.photons.trace_s + sum.photons.build_s + sum.photons.irradiance_s, sum.render_s, out, hdr ? ", " : "",
+            sum->photons.trace_s + sum->photons.build_s + sum->photons.irradiance_s, sum->render_s, out, hdr ? ", " : "",
             hdr ? hdr : "");
     if (time_limit > 0 && total > time_limit)
         pf_warn("the time limit of %.3g s was overrun by %.2f s", time_limit, total - time_limit);
     return 0;
+}
+
+static int s_cmd_render(int argc, char **argv)
+{
+    s_render_args a;
+    int code = s_parse_render_args(argc, argv, &a);
+    if (code >= 0)
+        return code;
+
+    double t0 = pf_now();
+    pf_error_t err = { { 0 } };
+    pf_scene_t *scene = pf_scene_load(a.path, &err);
+    if (!scene) {
+        pf_error("%s", err.msg);
+        return EXIT_INPUT;
+    }
+    pf_settings_t s = s_render_settings(scene, &a);
+    pf_budget_t budget;
+    s_plan(scene, &a, &s, t0, &budget);
+
+    pf_image_t img = { 0 };
+    pf_job_summary_t sum;
+    memset(&sum, 0, sizeof sum);
+    if (a.workers > 0 || a.farm.bind)
+        code = s_render_farm(&scene, &a, &budget, &s, &img, &sum, &err);
+    else
+        code = s_render_here(&scene, &a, &budget, &s, &img, &sum, &err);
+    if (code != 0)
+        return code;
+    return s_write_output(&a, &s, &img, &sum, t0, &err);
 }
 
 /* photonfarm keygen NAME: a CURVE key pair in NAME.key (secret, mode 0600)

@@ -9,10 +9,10 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "scene/scene.h"
 #include "fuzz/fuzz_models.h"
 #include "fuzz/fuzz_util.h"
 #include "load/load.h"
+#include "scene/scene.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 

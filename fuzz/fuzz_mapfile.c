@@ -24,9 +24,9 @@
 #include <string.h>
 
 #include "base/hash.h"
-#include "photon/photonmap.h"
-#include "photon/mapfile.h"
 #include "fuzz/fuzz_util.h"
+#include "photon/mapfile.h"
+#include "photon/photonmap.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 

@@ -18,9 +18,9 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "proto/messages.h"
 #include "base/wire.h"
 #include "fuzz/fuzz_util.h"
+#include "proto/messages.h"
 #include "render/frame.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);

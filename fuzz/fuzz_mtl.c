@@ -9,9 +9,9 @@
 #include <stdint.h>
 #include <string.h>
 
-#include "scene/scene.h"
 #include "fuzz/fuzz_util.h"
 #include "load/load.h"
+#include "scene/scene.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 

@@ -8,8 +8,8 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "proto/sceneblob.h"
 #include "fuzz/fuzz_util.h"
+#include "proto/sceneblob.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 

@@ -22,8 +22,8 @@
 
 #include "base/log.h"
 #include "load/load.h"
-#include "scene/scene.h"
 #include "proto/sceneblob.h"
+#include "scene/scene.h"
 
 /* Aborts with a message when an oracle fails: a finding, like a crash. */
 #define PF_FUZZ_REQUIRE(cond, ...)                                                 \

@@ -26,15 +26,15 @@
 
 #include "accel/accel.h"
 #include "base/hash.h"
-#include "light/light.h"
 #include "base/log.h"
+#include "light/light.h"
 #include "load/load.h"
-#include "render/frame.h"
-#include "scene/scene.h"
-#include "photon/trace.h"
 #include "photon/mapfile.h"
+#include "photon/trace.h"
 #include "proto/messages.h"
 #include "proto/sceneblob.h"
+#include "render/frame.h"
+#include "scene/scene.h"
 
 static const char *s_out = NULL;
 static const char *s_root = ".";

@@ -8,8 +8,8 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "scene/scene.h"
 #include "base/vec.h"
+#include "scene/scene.h"
 
 typedef struct pf_lights pf_lights_t;
 

@@ -46,6 +46,8 @@
 #include <strings.h>
 
 #include "base/log.h"
+#include "base/reserve.h"
+#include "load/text.h"
 
 /* One material as written, before mapping. */
 typedef struct s_mtl {
@@ -64,71 +66,32 @@ typedef struct s_ctx {
     const char *path;
     int line;
     pf_error_t *err;
-    char warned[S_MAX_WARNED][32];
-    int nwarned;
+    pf_text_warned_t warned;
+    s_mtl_t cur; /* the material being collected */
+    int have;    /* cur holds one (a newmtl was read) */
     pf_material_t *done; /* mapped materials, committed when the whole file parsed */
     size_t ndone, cap_done;
 } s_ctx_t;
 
-static int s_is_ws(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\v' || c == '\f'; }
-static int s_is_eol(char c) { return c == '\0' || c == '\n' || c == '#'; }
-static const char *s_skip_ws(const char *p)
-{
-    while (s_is_ws(*p))
-        p++;
-    return p;
-}
-/* Length of the token at p; messages print at most 40 bytes of it. */
-static int s_token_len(const char *p)
-{
-    int n = 0;
-    while (!s_is_ws(p[n]) && !s_is_eol(p[n]))
-        n++;
-    return n;
-}
-static int s_show(const char *p)
-{
-    int n = s_token_len(p);
-    return n < 40 ? n : 40;
-}
-
-/* Parses one float at *pp. Returns 0 and advances, 1 at the end of the
- * statement, -1 when the token is not a number. */
-static int s_float(const char **pp, float *out)
-{
-    const char *p = s_skip_ws(*pp);
-    *pp = p;
-    if (s_is_eol(*p))
-        return 1;
-    char *end;
-    float v = strtof(p, &end);
-    if (end == p || !(s_is_ws(*end) || s_is_eol(*end)))
-        return -1;
-    *out = v;
-    *pp = end;
-    return 0;
-}
-
 static int s_bad_number(s_ctx_t *c, const char *p)
 {
-    p = s_skip_ws(p);
-    return pf_error_set(c->err, PF_EPARSE, c->path, c->line, "malformed number '%.*s'", s_show(p), p);
+    return pf_text_bad_number(c->err, c->path, c->line, p);
 }
 
 /* Rejects anything after the values except a comment. */
 static int s_expect_end(s_ctx_t *c, const char *p, const char *kw)
 {
-    p = s_skip_ws(p);
-    if (s_is_eol(*p))
+    p = pf_text_skip_ws(p);
+    if (pf_text_is_eol(*p))
         return PF_OK;
     return pf_error_set(c->err, PF_EPARSE, c->path, c->line, "unexpected '%.*s' after the values of %s",
-                        s_show(p), p, kw);
+                        pf_text_show(p), p, kw);
 }
 
 /* Reads one scalar statement value: finite, >= lo. */
 static int s_scalar(s_ctx_t *c, const char *p, const char *kw, float lo, float *out)
 {
-    int rc = s_float(&p, out);
+    int rc = pf_text_float(&p, 0, out);
     if (rc == 1)
         return pf_error_set(c->err, PF_EPARSE, c->path, c->line, "%s needs a value", kw);
     if (rc < 0)
@@ -143,14 +106,14 @@ static int s_scalar(s_ctx_t *c, const char *p, const char *kw, float lo, float *
 /* Reads "r [g b]": finite and >= 0; with clamp, channels above 1 become 1. */
 static int s_color(s_ctx_t *c, const char *p, const char *kw, int clamp, pf_vec3 *out)
 {
-    const char *q = s_skip_ws(p);
+    const char *q = pf_text_skip_ws(p);
     if (strncasecmp(q, "spectral", 8) == 0 || strncasecmp(q, "xyz", 3) == 0)
         return pf_error_set(c->err, PF_EUNSUPPORTED, c->path, c->line,
-                            "%s: only RGB colours are supported (not '%.*s')", kw, s_show(q), q);
+                            "%s: only RGB colours are supported (not '%.*s')", kw, pf_text_show(q), q);
     float v[3];
     int n = 0;
     for (; n < 3; n++) {
-        int rc = s_float(&p, &v[n]);
+        int rc = pf_text_float(&p, 0, &v[n]);
         if (rc == 1)
             break;
         if (rc < 0)
@@ -181,20 +144,6 @@ static int s_color(s_ctx_t *c, const char *p, const char *kw, int clamp, pf_vec3
                 c->line, kw);
     *out = pf_v3(v[0], v[1], v[2]);
     return PF_OK;
-}
-
-static void s_warn_keyword(s_ctx_t *c, const char *kw, int len)
-{
-    if (len > (int)sizeof c->warned[0] - 1)
-        len = (int)sizeof c->warned[0] - 1;
-    for (int i = 0; i < c->nwarned; i++)
-        if ((int)strlen(c->warned[i]) == len && strncmp(c->warned[i], kw, (size_t)len) == 0)
-            return;
-    if (c->nwarned < S_MAX_WARNED) {
-        snprintf(c->warned[c->nwarned], sizeof c->warned[0], "%.*s", len, kw);
-        c->nwarned++;
-    }
-    pf_warn("%s:%d: ignoring unsupported statement '%.*s' (warned once per keyword)", c->path, c->line, len, kw);
 }
 
 /* Maps a collected material (see the table above) and keeps it for the commit. */
@@ -236,14 +185,8 @@ static int s_finish(s_ctx_t *c, const s_mtl_t *s)
             pf_warn("%s:%d: material '%s': transparency (d %g) is ignored for illum 0-2; the surface is opaque",
                     c->path, s->line, s->name, s->d);
     }
-    if (c->ndone == c->cap_done) {
-        size_t ncap = c->cap_done ? 2 * c->cap_done : 16;
-        pf_material_t *p = realloc(c->done, ncap * sizeof *p);
-        if (!p)
-            return pf_error_set(c->err, PF_ENOMEM, c->path, s->line, "out of memory");
-        c->done = p;
-        c->cap_done = ncap;
-    }
+    if (pf_reserve((void **)&c->done, &c->cap_done, c->ndone + 1, sizeof *c->done))
+        return pf_error_set(c->err, PF_ENOMEM, c->path, s->line, "out of memory");
     c->done[c->ndone++] = m;
     return PF_OK;
 }
@@ -261,44 +204,50 @@ static int s_commit(s_ctx_t *c)
     return PF_OK;
 }
 
-/* Handles one statement (keyword kw of length kwlen, values at p). */
-static int s_statement(s_ctx_t *c, s_mtl_t *cur, int *have, const char *kw, int kwlen, const char *p)
+/* newmtl: maps the material collected so far and starts the named one. */
+static int s_newmtl(s_ctx_t *c, const char *p)
 {
-#define S_KW(s) (kwlen == (int)sizeof(s) - 1 && strncasecmp(kw, s, sizeof(s) - 1) == 0)
-    if (S_KW("newmtl")) {
-        if (*have) {
-            int rc = s_finish(c, cur);
-            if (rc)
-                return rc;
-        }
-        p = s_skip_ws(p);
-        size_t n = strcspn(p, "\n#");
-        while (n > 0 && s_is_ws(p[n - 1]))
-            n--;
-        if (n == 0)
-            return pf_error_set(c->err, PF_EPARSE, c->path, c->line, "newmtl needs a name");
-        if (n >= PF_NAME_MAX)
-            pf_warn("%s:%d: material name '%.*s' truncated to %d bytes", c->path, c->line, (int)n, p,
-                    PF_NAME_MAX - 1);
-        memset(cur, 0, sizeof *cur);
-        snprintf(cur->name, sizeof cur->name, "%.*s", (int)n, p);
-        cur->line = c->line;
-        cur->illum = -1;
-        *have = 1;
-        return PF_OK;
+    s_mtl_t *cur = &c->cur;
+    if (c->have) {
+        int rc = s_finish(c, cur);
+        if (rc)
+            return rc;
     }
+    size_t n;
+    p = pf_text_rest(p, &n);
+    if (n == 0)
+        return pf_error_set(c->err, PF_EPARSE, c->path, c->line, "newmtl needs a name");
+    if (n >= PF_NAME_MAX)
+        pf_warn("%s:%d: material name '%.*s' truncated to %d bytes", c->path, c->line, (int)n, p, PF_NAME_MAX - 1);
+    memset(cur, 0, sizeof *cur);
+    snprintf(cur->name, sizeof cur->name, "%.*s", (int)n, p);
+    cur->line = c->line;
+    cur->illum = -1;
+    c->have = 1;
+    return PF_OK;
+}
+
+/* Handles one statement (keyword kw of length kwlen, values at p) for
+ * pf_text_read_statements; arg is the s_ctx_t. */
+static int s_statement(void *arg, const char *kw, int kwlen, const char *p)
+{
+    s_ctx_t *c = arg;
+    s_mtl_t *cur = &c->cur;
+#define S_KW(s) (kwlen == (int)sizeof(s) - 1 && strncasecmp(kw, s, sizeof(s) - 1) == 0)
+    if (S_KW("newmtl"))
+        return s_newmtl(c, p);
     if (S_KW("Ka") || (kwlen > 4 && strncasecmp(kw, "map_", 4) == 0) || S_KW("bump") || S_KW("disp") ||
         S_KW("decal") || S_KW("refl") || S_KW("sharpness"))
         return PF_OK;
     int known = S_KW("Kd") || S_KW("Ks") || S_KW("Ke") || S_KW("Tf") || S_KW("Ns") || S_KW("Ni") || S_KW("d") ||
                 S_KW("Tr") || S_KW("illum");
     if (!known) {
-        s_warn_keyword(c, kw, kwlen);
+        pf_text_warn_keyword(&c->warned, c->path, c->line, kw, kwlen);
         return PF_OK;
     }
     char name[8];
     snprintf(name, sizeof name, "%.*s", kwlen, kw);
-    if (!*have)
+    if (!c->have)
         return pf_error_set(c->err, PF_EPARSE, c->path, c->line, "%s before any newmtl", name);
     if (S_KW("Kd")) {
         cur->has_kd = 1;
@@ -339,12 +288,12 @@ static int s_statement(s_ctx_t *c, s_mtl_t *cur, int *have, const char *kw, int 
         return PF_OK;
     }
     /* illum: a non-negative integer. */
-    p = s_skip_ws(p);
+    p = pf_text_skip_ws(p);
     char *end;
     long v = strtol(p, &end, 10);
-    if (end == p || !(s_is_ws(*end) || s_is_eol(*end)) || v < 0 || v > 1000)
+    if (end == p || !pf_text_is_delim(*end) || v < 0 || v > 1000)
         return pf_error_set(c->err, PF_EPARSE, c->path, c->line, "illum needs an integer in 0..10, not '%.*s'",
-                            s_show(p), p);
+                            pf_text_show(p), p);
     cur->illum = (int)v;
     return s_expect_end(c, end, "illum");
 #undef S_KW
@@ -356,32 +305,13 @@ int pf_mtl_load(pf_scene_t *scene, const char *path, pf_error_t *err)
     FILE *f = fopen(path, "rb");
     if (!f)
         return pf_error_set(err, PF_EIO, path, 0, "cannot open material library: %s", strerror(errno));
-    s_ctx_t c = { .scene = scene, .path = path, .err = err };
-    s_mtl_t cur;
-    memset(&cur, 0, sizeof cur);
-    int have = 0, rc = PF_OK;
-    char *line = NULL;
-    size_t cap = 0;
-    while (rc == PF_OK && getline(&line, &cap, f) >= 0) {
-        c.line++;
-        const char *p = s_skip_ws(line);
-        if (s_is_eol(*p))
-            continue;
-        int kwlen = s_token_len(p);
-        rc = s_statement(&c, &cur, &have, p, kwlen, p + kwlen);
-    }
-    /* getline also returns -1 when it cannot grow its buffer (a line too
-     * long for memory, e.g. a device read as a model): only the end of the
-     * file ends the file, anything else is an error, not a truncation. */
-    if (rc == PF_OK && (ferror(f) || !feof(f)))
-        rc = pf_error_set(err, errno == ENOMEM ? PF_ENOMEM : PF_EIO, path, c.line + 1, "read error: %s",
-                          errno == ENOMEM ? "a line too long for memory" : strerror(errno));
-    if (rc == PF_OK && have)
-        rc = s_finish(&c, &cur);
+    s_ctx_t c = { .scene = scene, .path = path, .err = err, .warned = { .max = S_MAX_WARNED } };
+    int rc = pf_text_read_statements(f, path, &c.line, err, s_statement, &c);
+    if (rc == PF_OK && c.have)
+        rc = s_finish(&c, &c.cur);
     if (rc == PF_OK)
         rc = s_commit(&c); /* nothing reaches the scene from a file with an error */
     free(c.done);
-    free(line);
     fclose(f);
     return rc;
 }

@@ -35,7 +35,6 @@
  * inverse transpose. A mirroring xf (det < 0) reverses every triangle's
  * winding and negates the transformed normals, so face and shading normals
  * keep pointing out of the same side of the surface. */
-#include "base/fastfloat.h"
 #include "base/reserve.h"
 #include "load/load.h"
 
@@ -47,6 +46,7 @@
 #include <string.h>
 
 #include "base/log.h"
+#include "load/text.h"
 
 /* A corner's normal reference: an index into the file's vn list, or, with
  * S_FACE_NRM set, into the mesh's list of face normals. */
@@ -101,99 +101,36 @@ typedef struct s_obj {
     /* Finished meshes; mat[] still holds slot numbers. */
     pf_mesh_t *meshes;
     size_t nmeshes, cap_meshes;
-    char warned[S_MAX_WARNED][32];
-    int nwarned;
+    pf_text_warned_t warned;
 } s_obj_t;
 
 #define S_RESERVE(o, arr, cap, need) pf_reserve((void **)&(arr), &(cap), (need), sizeof *(arr))
 
-static int s_is_ws(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\v' || c == '\f'; }
-static int s_is_eol(char c) { return c == '\0' || c == '\n' || c == '#'; }
-static int s_is_delim(char c) { return s_is_ws(c) || s_is_eol(c); }
-static const char *s_skip_ws(const char *p)
-{
-    while (s_is_ws(*p))
-        p++;
-    return p;
-}
-static int s_token_len(const char *p)
-{
-    int n = 0;
-    while (!s_is_delim(p[n]))
-        n++;
-    return n;
-}
-/* How much of a token a message shows. */
-static int s_show(const char *p)
-{
-    int n = s_token_len(p);
-    return n < 40 ? n : 40;
-}
-
 static int s_nomem(s_obj_t *o) { return pf_error_set(o->err, PF_ENOMEM, o->path, o->line, "out of memory"); }
-
-
-/* Parses one float at *pp: 0 (and advances), 1 at the end of the statement,
- * -1 when the token is not a number. */
-static int s_float(const char **pp, float *out)
-{
-    const char *p = s_skip_ws(*pp);
-    *pp = p;
-    if (s_is_eol(*p))
-        return 1;
-    const char *end;
-    float v;
-    if (!pf_fast_float(p, &end, &v)) {
-        char *e;
-        v = strtof(p, &e);
-        end = e;
-    }
-    if (end == p || !s_is_delim(*end))
-        return -1;
-    *out = v;
-    *pp = end;
-    return 0;
-}
 
 /* Reads n >= 1 required floats of a statement; checks they are finite. */
 static int s_floats(s_obj_t *o, const char **pp, int n, float *v, const char *kw)
 {
     for (int i = 0; i < n; i++) {
-        const char *tok = s_skip_ws(*pp);
-        int rc = s_float(pp, &v[i]);
+        const char *tok = pf_text_skip_ws(*pp);
+        int rc = pf_text_float(pp, 1, &v[i]);
         if (rc == 1)
             return pf_error_set(o->err, PF_EPARSE, o->path, o->line, "'%s' needs %d numbers, found %d", kw, n, i);
         if (rc < 0)
-            return pf_error_set(o->err, PF_EPARSE, o->path, o->line, "malformed number '%.*s'", s_show(tok), tok);
+            return pf_text_bad_number(o->err, o->path, o->line, tok);
         if (!isfinite(v[i]))
-            return pf_error_set(o->err, PF_EPARSE, o->path, o->line, "non-finite value '%.*s' in '%s'", s_show(tok),
-                                tok, kw);
+            return pf_error_set(o->err, PF_EPARSE, o->path, o->line, "non-finite value '%.*s' in '%s'",
+                                pf_text_show(tok), tok, kw);
     }
     return PF_OK;
-}
-
-static void s_warn_keyword(s_obj_t *o, const char *kw, int len)
-{
-    if (len > (int)sizeof o->warned[0] - 1)
-        len = (int)sizeof o->warned[0] - 1;
-    for (int i = 0; i < o->nwarned; i++)
-        if ((int)strlen(o->warned[i]) == len && strncmp(o->warned[i], kw, (size_t)len) == 0)
-            return;
-    if (o->nwarned < S_MAX_WARNED) {
-        snprintf(o->warned[o->nwarned], sizeof o->warned[0], "%.*s", len, kw);
-        o->nwarned++;
-    }
-    pf_warn("%s:%d: ignoring unsupported statement '%.*s' (warned once per keyword)", o->path, o->line, len, kw);
 }
 
 /* The rest of the statement as a name: leading and trailing blanks dropped,
  * truncated (with a warning) to fit PF_NAME_MAX. */
 static void s_rest_name(s_obj_t *o, const char *p, char *out)
 {
-    p = s_skip_ws(p);
-    size_t n = strcspn(p, "\n#");
-    while (n > 0 && s_is_ws(p[n - 1]))
-        n--;
+    size_t n;
+    p = pf_text_rest(p, &n);
     if (n >= PF_NAME_MAX)
         pf_warn("%s:%d: name '%.*s' truncated to %d bytes", o->path, o->line, (int)n, p, PF_NAME_MAX - 1);
     snprintf(out, PF_NAME_MAX, "%.*s", (int)n, p);
@@ -208,15 +145,16 @@ static int s_index(s_obj_t *o, const char **pp, size_t count, const char *what, 
     if (*p == '-' || *p == '+')
         neg = *p++ == '-';
     if (*p < '0' || *p > '9')
-        return pf_error_set(o->err, PF_EPARSE, o->path, o->line, "malformed face vertex '%.*s'", s_show(corner),
-                            corner);
+        return pf_error_set(o->err, PF_EPARSE, o->path, o->line, "malformed face vertex '%.*s'",
+                            pf_text_show(corner), corner);
     uint64_t v = 0;
     const char *digits = p;
     for (; *p >= '0' && *p <= '9'; p++)
         v = v > (1ull << 40) ? v : v * 10 + (uint64_t)(*p - '0'); /* saturates: out of range anyway */
     if (v == 0)
         return pf_error_set(o->err, PF_EPARSE, o->path, o->line,
-                            "%s index 0 in '%.*s' is invalid (OBJ indices start at 1)", what, s_show(corner), corner);
+                            "%s index 0 in '%.*s' is invalid (OBJ indices start at 1)", what, pf_text_show(corner),
+                            corner);
     if (v > count)
         return pf_error_set(o->err, PF_EPARSE, o->path, o->line, "%s index %s%.*s out of range (%zu defined so far)",
                             what, neg ? "-" : "", (int)(p - digits), digits, count);
@@ -243,27 +181,27 @@ static int s_face(s_obj_t *o, const char *p)
     size_t n = 0;
     int missing = 0;
     for (;;) {
-        p = s_skip_ws(p);
-        if (s_is_eol(*p))
+        p = pf_text_skip_ws(p);
+        if (pf_text_is_eol(*p))
             break;
         const char *corner = p;
         uint32_t vi, ti, ni = S_NO_NRM;
         int rc = s_index(o, &p, o->npos, "vertex", corner, &vi);
         if (!rc && *p == '/') {
             p++;
-            if (*p != '/' && !s_is_delim(*p))
+            if (*p != '/' && !pf_text_is_delim(*p))
                 rc = s_index(o, &p, o->ntex, "texture coordinate", corner, &ti);
             if (!rc && *p == '/') {
                 p++;
-                if (!s_is_delim(*p))
+                if (!pf_text_is_delim(*p))
                     rc = s_index(o, &p, o->nnrm, "normal", corner, &ni);
             }
         }
         if (rc)
             return rc;
-        if (!s_is_delim(*p))
-            return pf_error_set(o->err, PF_EPARSE, o->path, o->line, "malformed face vertex '%.*s'", s_show(corner),
-                                corner);
+        if (!pf_text_is_delim(*p))
+            return pf_error_set(o->err, PF_EPARSE, o->path, o->line, "malformed face vertex '%.*s'",
+                                pf_text_show(corner), corner);
         if ((n >= o->cap_fv && S_RESERVE(o, o->fv, o->cap_fv, n + 1)) ||
             (n >= o->cap_fn && S_RESERVE(o, o->fn, o->cap_fn, n + 1)))
             return s_nomem(o);
@@ -417,10 +355,10 @@ static int s_usemtl(s_obj_t *o, const char *p)
 static int s_mtllib(s_obj_t *o, const char *p)
 {
     for (;;) {
-        p = s_skip_ws(p);
-        if (s_is_eol(*p))
+        p = pf_text_skip_ws(p);
+        if (pf_text_is_eol(*p))
             return PF_OK;
-        int n = s_token_len(p);
+        int n = pf_text_token_len(p);
         const char *name = p;
         p += n;
         if (o->mat_override >= 0)
@@ -444,8 +382,10 @@ static int s_mtllib(s_obj_t *o, const char *p)
     }
 }
 
-static int s_statement(s_obj_t *o, const char *kw, int kwlen, const char *p)
+/* Handles one statement for pf_text_read_statements; arg is the s_obj_t. */
+static int s_statement(void *arg, const char *kw, int kwlen, const char *p)
 {
+    s_obj_t *o = arg;
 #define S_KW(s) (kwlen == (int)sizeof(s) - 1 && memcmp(kw, s, sizeof(s) - 1) == 0)
     float v[3];
     int rc;
@@ -501,7 +441,7 @@ static int s_statement(s_obj_t *o, const char *kw, int kwlen, const char *p)
         return s_mtllib(o, p);
     if (S_KW("s"))
         return PF_OK;
-    s_warn_keyword(o, kw, kwlen);
+    pf_text_warn_keyword(&o->warned, o->path, o->line, kw, kwlen);
     return PF_OK;
 #undef S_KW
 }
@@ -572,6 +512,7 @@ int pf_obj_load(pf_scene_t *scene, const char *path, const pf_xform_t *xf, int m
     o->xf = xf;
     o->flip = xf && pf_xform_det(xf) < 0.0f;
     o->mat_override = mat_override;
+    o->warned.max = S_MAX_WARNED;
     memset(&o->slots[0], 0, sizeof o->slots[0]);
     o->nslots = 1;
     const char *slash = strrchr(path, '/');
@@ -582,28 +523,11 @@ int pf_obj_load(pf_scene_t *scene, const char *path, const pf_xform_t *xf, int m
     snprintf(o->base, sizeof o->base, "%.*s", (int)(dot && dot != file ? dot - file : (ptrdiff_t)strlen(file)), file);
     memcpy(o->name, o->base, sizeof o->name);
 
-    int rc = PF_OK;
-    char *line = NULL;
-    size_t cap = 0;
-    while (rc == PF_OK && getline(&line, &cap, f) >= 0) {
-        o->line++;
-        const char *p = s_skip_ws(line);
-        if (s_is_eol(*p))
-            continue;
-        int kwlen = s_token_len(p);
-        rc = s_statement(o, p, kwlen, p + kwlen);
-    }
-    /* getline also returns -1 when it cannot grow its buffer (a line too
-     * long for memory, e.g. a device read as a model): only the end of the
-     * file ends the file, anything else is an error, not a truncation. */
-    if (rc == PF_OK && (ferror(f) || !feof(f)))
-        rc = pf_error_set(err, errno == ENOMEM ? PF_ENOMEM : PF_EIO, path, o->line + 1, "read error: %s",
-                          errno == ENOMEM ? "a line too long for memory" : strerror(errno));
+    int rc = pf_text_read_statements(f, path, &o->line, err, s_statement, o);
     if (rc == PF_OK)
         rc = s_flush(o);
     if (rc == PF_OK)
         rc = s_commit(o);
-    free(line);
     fclose(f);
     for (size_t i = 0; i < o->nmeshes; i++)
         pf_mesh_free(&o->meshes[i]); /* meshes handed to the scene were zeroed */

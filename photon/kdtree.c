@@ -1,8 +1,19 @@
-/* kdtree.c: the photon maps' static kd-tree (see kdtree.h for the layout).
+/* kdtree.c: the photon maps' static kd-tree (see kdtree.h for the layout):
+ * its build, the check of a received layout and the tree's lifetime, and
+ * the nearest-photon search with an agreeing normal, with the grid that
+ * speeds it up. The k-nearest and radius queries are in kdtree_query.c.
+ *
+ * Why these together: tests/photon/test_kdtree.c compiles a second copy of
+ * this file (a selection budget of one pass, a failing malloc, the public
+ * names renamed) and calls that copy's build, destroy, photons,
+ * nearest-normal search and grid index. Those must stay here, with all they
+ * call by a public name; anything else this file defines externally would
+ * be defined twice in that test.
  *
  * The tree owns one array, the photons reordered into the implicit median
  * layout, each carrying its node's split axis in its normal's spare bits
- * (photon.h); plus the bounds of all positions.
+ * (photon.h); plus the bounds of all positions, and the grid once
+ * pf_kdtree_index_nearest has built it.
  * It is built once, by one caller thread (the top levels of the build run as
  * OpenMP tasks), and then only read: any number of threads may query it at
  * once, and queries allocate nothing.
@@ -17,11 +28,12 @@
  * fixed place, so even bad input cannot make the comparison inconsistent.
  *
  * Distances. A squared distance is computed as the float differences squared
- * and summed in double, then rounded once to float. The products are exact in
- * double, so the value does not depend on whether the compiler contracts
- * multiply-adds into FMA, and tests can reproduce it bit for bit. The rounding
- * is monotone, so the squared distance to a split plane is a true lower bound
- * of the distance of every photon beyond it, which is what pruning needs.
+ * and summed in double, then rounded once to float (s_dist2, kdtree_impl.h).
+ * The products are exact in double, so the value does not depend on whether
+ * the compiler contracts multiply-adds into FMA, and tests can reproduce it
+ * bit for bit. The rounding is monotone, so the squared distance to a split
+ * plane is a true lower bound of the distance of every photon beyond it,
+ * which is what pruning needs.
  *
  * Positions are expected to be finite (pf_kdtree_from_layout enforces it; the
  * photon tracer rejects NaN before storing), but the build cannot refuse them
@@ -37,20 +49,13 @@
 #include <string.h>
 
 #include "base/status.h"
+#include "photon/kdtree_impl.h"
 
 /* Ranges at least this large are split by a separate OpenMP task; below it a
  * task costs more than it saves. The result does not depend on it. */
 #define S_TASK_MIN ((size_t)1 << 15)
 /* Builds this small run on the calling thread alone. */
 #define S_PARALLEL_MIN ((size_t)1 << 17)
-/* n < 2^31 keeps every index in a uint32_t with bit 31 free, and the tree at
- * most 31 levels deep, so traversal stacks of this size cannot overflow. */
-#define S_MAX_N ((size_t)1 << 31)
-#define S_STACK 64
-/* A radius search scans a subtree of at most this many photons in index
- * order instead of walking it: no plane tests or stack, and the photons are
- * contiguous (irradiance precomputation 2.9 -> 2.1 s at 10M photons). */
-#define S_LEAF 8
 /* The work one selection may spend, in multiples of its range's size, before
  * it falls back to heapsort (typical use is under 3). The test lowers it to
  * exercise the fallback. */
@@ -58,15 +63,10 @@
 #define PF_KDTREE_SELECT_BUDGET 8
 #endif
 
-typedef struct s_grid s_grid;
 static void s_grid_free(s_grid *g);
 
-struct pf_kdtree {
-    pf_photon_t *photons;
-    size_t n;
-    pf_vec3 lo, hi;
-    s_grid *grid; /* pf_kdtree_index_nearest's grid, or NULL */
-};
+/* ------------------------------------------------------------------------ */
+/* The build and the tree's lifetime                                        */
 
 /* A photon as the build sees it: its coordinates already mapped to ordered
  * integer keys (s_fkey) and its input index, 16 bytes, so that the many
@@ -551,136 +551,8 @@ void pf_kdtree_bounds(const pf_kdtree_t *self, pf_vec3 *lo, pf_vec3 *hi)
     *hi = self->hi;
 }
 
-/* Squared distance, contraction-proof; see the note at the top of the file. */
-static inline float s_dist2(const float q[3], const float p[3])
-{
-    double dx = q[0] - p[0], dy = q[1] - p[1], dz = q[2] - p[2];
-    return (float)(dx * dx + dy * dy + dz * dz);
-}
-
-/* The results heap is a max-heap on (d2, index): its root is the worst of the
- * k kept so far, the one a better candidate replaces. */
-static inline int s_worse(const pf_knn_t *a, const pf_knn_t *b)
-{
-    return a->d2 > b->d2 || (a->d2 == b->d2 && a->index > b->index);
-}
-
-static void s_sift_down(pf_knn_t *h, size_t root, size_t n)
-{
-    pf_knn_t v = h[root];
-    for (;;) {
-        size_t child = 2 * root + 1;
-        if (child >= n)
-            break;
-        if (child + 1 < n && s_worse(&h[child + 1], &h[child]))
-            child++;
-        if (!s_worse(&h[child], &v))
-            break;
-        h[root] = h[child];
-        root = child;
-    }
-    h[root] = v;
-}
-
-static void s_sift_up(pf_knn_t *h, size_t i)
-{
-    pf_knn_t v = h[i];
-    while (i > 0) {
-        size_t parent = (i - 1) / 2;
-        if (!s_worse(&v, &h[parent]))
-            break;
-        h[i] = h[parent];
-        i = parent;
-    }
-    h[i] = v;
-}
-
-typedef struct s_entry {
-    uint32_t lo, hi;
-    float d2; /* squared distance from the query to the range's split plane */
-} s_entry_t;
-
-/* A query nothing can satisfy: a NaN point, or a NaN or negative radius.
- * Caught up front because NaN comparisons would otherwise prune nothing. */
-static inline int s_hopeless(pf_vec3 x, float r2)
-{
-    return isnan(x.x) || isnan(x.y) || isnan(x.z) || !(r2 >= 0.0f);
-}
-
-/* The heap lives in out itself, so k has no limit and nothing is allocated.
- * A subtree is skipped only when its plane is strictly farther than the
- * current bound (a photon exactly at the bound may still win on index), and
- * never when that distance is NaN. */
-size_t pf_kdtree_knn_heap(const pf_kdtree_t *self, pf_vec3 x, size_t k, float max_r2, pf_knn_t *out)
-{
-    if (!self || self->n == 0 || k == 0 || s_hopeless(x, max_r2))
-        return 0;
-    const pf_photon_t *ph = self->photons;
-    const float q[3] = { x.x, x.y, x.z };
-    size_t count = 0;
-    float bound = max_r2; /* max_r2 until k are held, then the worst held d2 */
-    s_entry_t stack[S_STACK];
-    int sp = 0;
-    uint32_t lo = 0, hi = (uint32_t)self->n;
-    for (;;) {
-        while (lo < hi) {
-            uint32_t m = lo + (hi - lo) / 2;
-            const float *p = ph[m].pos;
-            float d2 = s_dist2(q, p);
-            if (d2 <= bound) {
-                pf_knn_t c = { m, d2 };
-                if (count < k) {
-                    out[count] = c;
-                    s_sift_up(out, count);
-                    if (++count == k)
-                        bound = out[0].d2;
-                } else if (s_worse(&out[0], &c)) {
-                    out[0] = c;
-                    s_sift_down(out, 0, k);
-                    bound = out[0].d2;
-                }
-            }
-            unsigned a = pf_photon_axis(&ph[m]);
-            float diff = q[a] - p[a];
-            float plane_d2 = diff * diff;
-            uint32_t flo, fhi;
-            if (diff < 0.0f) {
-                flo = m + 1;
-                fhi = hi;
-                hi = m;
-            } else {
-                flo = lo;
-                fhi = m;
-                lo = m + 1;
-            }
-            if (flo < fhi && !(plane_d2 > bound)) {
-                PF_DCHECK(sp < S_STACK);
-                stack[sp++] = (s_entry_t){ flo, fhi, plane_d2 };
-            }
-        }
-        /* Entries pushed before the bound shrank may now be out of reach. */
-        do {
-            if (sp == 0)
-                return count;
-            sp--;
-        } while (stack[sp].d2 > bound);
-        lo = stack[sp].lo;
-        hi = stack[sp].hi;
-    }
-}
-
-size_t pf_kdtree_knn(const pf_kdtree_t *self, pf_vec3 x, size_t k, float max_r2, pf_knn_t *out)
-{
-    size_t count = pf_kdtree_knn_heap(self, x, k, max_r2, out);
-    /* Heapsort the max-heap in place: ascending by (d2, index). */
-    for (size_t end = count; end-- > 1;) {
-        pf_knn_t t = out[0];
-        out[0] = out[end];
-        out[end] = t;
-        s_sift_down(out, 0, end);
-    }
-    return count;
-}
+/* ------------------------------------------------------------------------ */
+/* The nearest photon with an agreeing normal, and its grid                 */
 
 /* The k = 1 search without a heap, with the normal test applied to each
  * candidate that would beat the current best (the oct-normal decode is paid
@@ -832,38 +704,13 @@ static int s_grid_grow(s_grid *g)
     return PF_OK;
 }
 
-/* A high percentile (p in 0..1) of the distances from a sample of points to
- * their nearest neighbour. */
-static double s_spacing_percentile(const pf_kdtree_t *self, double p)
-{
-    enum { SAMPLES = 1024 };
-    float d[SAMPLES];
-    size_t m = 0;
-    for (size_t s = 0; s < SAMPLES && s < self->n; s++) {
-        size_t i = s * self->n / (self->n < SAMPLES ? self->n : SAMPLES);
-        pf_knn_t nn[2];
-        if (pf_kdtree_knn(self, pf_photon_pos(&self->photons[i]), 2, INFINITY, nn) == 2 && nn[1].d2 > 0.0f)
-            d[m++] = nn[1].d2;
-    }
-    if (m == 0)
-        return 0.0;
-    /* a partial insertion sort would do; the sample is small */
-    for (size_t i = 1; i < m; i++)
-        for (size_t j = i; j > 0 && d[j - 1] > d[j]; j--) {
-            float t = d[j];
-            d[j] = d[j - 1];
-            d[j - 1] = t;
-        }
-    return sqrt((double)d[(size_t)(p * (double)(m - 1))]);
-}
-
 int pf_kdtree_index_nearest(pf_kdtree_t *self)
 {
     if (!self || self->grid || self->n < 64)
         return PF_OK; /* a small tree is fast enough */
     /* The spacing of the sparse regions (photon density follows the light),
      * so that queries there are settled by the grid too. */
-    double spacing = s_spacing_percentile(self, 0.9);
+    double spacing = pf_kdtree_spacing_percentile(self, 0.9);
     double ext = fmax(fmax(self->hi.x - self->lo.x, self->hi.y - self->lo.y), self->hi.z - self->lo.z);
     if (!(spacing > 0.0) || !isfinite(ext))
         return PF_OK; /* coincident points: the tree is as good */
@@ -1051,72 +898,4 @@ int pf_kdtree_nearest_normal(const pf_kdtree_t *self, pf_vec3 x, pf_vec3 n, floa
     if (self->grid && s_nearest_grid(self->grid, x, n, min_cos, &max_r2, out, &found))
         return found;
     return s_nearest_tree(self, x, n, min_cos, max_r2, out);
-}
-
-/* pf_kdtree_radius, giving up once more than stop photons are found (the
- * count returned is then stop + 1 or a little more). */
-static size_t s_radius(const pf_kdtree_t *self, pf_vec3 x, float r2, pf_knn_t *out, size_t cap, size_t stop)
-{
-    if (!self || self->n == 0 || s_hopeless(x, r2))
-        return 0;
-    const pf_photon_t *ph = self->photons;
-    const float q[3] = { x.x, x.y, x.z };
-    size_t count = 0;
-    s_entry_t stack[S_STACK];
-    int sp = 0;
-    uint32_t lo = 0, hi = (uint32_t)self->n;
-    /* Whether a photon is inside is a coin toss to the branch predictor, so
-     * each one tested is written to the next free slot (or, once cap are
-     * kept, to a slot of its own) and counted only if inside. */
-    pf_knn_t spill;
-    for (;;) {
-        while (lo < hi) {
-            if (hi - lo <= S_LEAF) {
-                for (uint32_t m = lo; m < hi; m++) {
-                    float d2 = s_dist2(q, ph[m].pos);
-                    pf_knn_t *slot = count < cap ? &out[count] : &spill;
-                    *slot = (pf_knn_t){ m, d2 };
-                    count += d2 <= r2;
-                }
-                break;
-            }
-            uint32_t m = lo + (hi - lo) / 2;
-            const float *p = ph[m].pos;
-            float d2 = s_dist2(q, p);
-            pf_knn_t *slot = count < cap ? &out[count] : &spill;
-            *slot = (pf_knn_t){ m, d2 };
-            count += d2 <= r2;
-            unsigned a = pf_photon_axis(&ph[m]);
-            float diff = q[a] - p[a];
-            uint32_t flo, fhi;
-            if (diff < 0.0f) {
-                flo = m + 1;
-                fhi = hi;
-                hi = m;
-            } else {
-                flo = lo;
-                fhi = m;
-                lo = m + 1;
-            }
-            if (flo < fhi && !(diff * diff > r2)) {
-                PF_DCHECK(sp < S_STACK);
-                stack[sp++] = (s_entry_t){ flo, fhi, 0.0f };
-            }
-        }
-        if (sp == 0 || count > stop)
-            return count;
-        sp--;
-        lo = stack[sp].lo;
-        hi = stack[sp].hi;
-    }
-}
-
-size_t pf_kdtree_radius(const pf_kdtree_t *self, pf_vec3 x, float r2, pf_knn_t *out, size_t cap)
-{
-    return s_radius(self, x, r2, out, cap, SIZE_MAX);
-}
-
-size_t pf_kdtree_radius_upto(const pf_kdtree_t *self, pf_vec3 x, float r2, pf_knn_t *out, size_t cap)
-{
-    return s_radius(self, x, r2, out, cap, cap);
 }

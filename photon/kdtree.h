@@ -17,8 +17,8 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "photon/photon.h"
 #include "base/vec.h"
+#include "photon/photon.h"
 
 typedef struct pf_kdtree pf_kdtree_t;
 

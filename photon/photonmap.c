@@ -8,9 +8,9 @@
 #include <stddef.h>
 #include <string.h>
 
+#include "base/status.h"
 #include "material/bsdf.h"
 #include "photon/photon.h"
-#include "base/status.h"
 
 void pf_photon_maps_free(pf_photon_maps_t *maps)
 {

@@ -5,8 +5,8 @@
 #ifndef PF_SCENEBLOB_H
 #define PF_SCENEBLOB_H
 
-#include "scene/scene.h"
 #include "proto/messages.h"
+#include "scene/scene.h"
 
 #define PF_SCENEBLOB_MAGIC 0x4e435346u /* "FSCN" */
 #define PF_SCENEBLOB_VERSION 2

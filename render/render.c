@@ -59,10 +59,10 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "material/bsdf.h"
-#include "photon/irrtex.h"
 #include "base/log.h"
 #include "base/rng.h"
+#include "material/bsdf.h"
+#include "photon/irrtex.h"
 
 /* The camera samples of one pixel reach nearly the same points, and the
  * caustic estimate is a blur of radius r (its k-th photon's distance), so an

@@ -3,8 +3,8 @@
 #ifndef PF_CAMERA_H
 #define PF_CAMERA_H
 
-#include "scene/scene.h"
 #include "base/vec.h"
+#include "scene/scene.h"
 
 typedef struct pf_camera {
     pf_vec3 pos;

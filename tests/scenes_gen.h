@@ -8,8 +8,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "scene/scene.h"
 #include "base/status.h"
+#include "scene/scene.h"
 
 /* A geodesic sphere (subdivided octahedron) of 8 * 4^levels triangles, wound
  * so the face normals point inwards: emission and the lit side face the

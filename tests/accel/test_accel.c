@@ -19,12 +19,12 @@
 #include <string.h>
 
 #include "accel/accel.h"
-#include "material/bsdf.h"
-#include "scene/camera.h"
 #include "base/log.h"
 #include "base/rng.h"
-#include "scene/scene.h"
 #include "base/vec.h"
+#include "material/bsdf.h"
+#include "scene/camera.h"
+#include "scene/scene.h"
 
 #include "check.h"
 

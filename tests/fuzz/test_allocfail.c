@@ -1,5 +1,5 @@
 /* test_allocfail.c: allocation-failure injection into every decoder of
- * outside input (issue 5): the scene loaders (JSON, OBJ, MTL, PLY, and
+ * outside input: the scene loaders (JSON, OBJ, MTL, PLY, and
  * pf_scene_load's finalize), the scene blob, the photon-map blob and every
  * wire message.
  *
@@ -28,17 +28,17 @@
 #include <string.h>
 #include <unistd.h>
 
-#include "check.h"
 #include "base/hash.h"
+#include "base/log.h"
+#include "check.h"
 #include "load/load.h"
 #include "photon/kdtree.h"
-#include "base/log.h"
-#include "photon/photonmap.h"
-#include "render/frame.h"
-#include "scene/scene.h"
 #include "photon/mapfile.h"
+#include "photon/photonmap.h"
 #include "proto/messages.h"
 #include "proto/sceneblob.h"
+#include "render/frame.h"
+#include "scene/scene.h"
 
 /* ---- the failing allocator ---- */
 

@@ -20,9 +20,9 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include "coordinator/compare.h"
 #include "image/image.h"
 #include "image/metrics.h"
-#include "coordinator/compare.h"
 
 #include "check.h"
 

@@ -23,10 +23,10 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "light/light.h"
 #include "base/rng.h"
-#include "scene/scene.h"
 #include "base/vec.h"
+#include "light/light.h"
+#include "scene/scene.h"
 
 #include "check.h"
 

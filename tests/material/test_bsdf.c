@@ -21,10 +21,10 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "material/bsdf.h"
-#include "photon/photon.h"
 #include "base/rng.h"
 #include "base/vec.h"
+#include "material/bsdf.h"
+#include "photon/photon.h"
 
 #include "check.h"
 

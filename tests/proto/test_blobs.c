@@ -25,9 +25,9 @@
 
 #include "base/hash.h"
 #include "base/log.h"
+#include "base/wire.h"
 #include "photon/mapfile.h"
 #include "proto/sceneblob.h"
-#include "base/wire.h"
 
 #include "check.h"
 #include "load/load.h"
@@ -513,40 +513,42 @@ static void s_map_patch(const pf_buf_t *b, const s_mpatch_t *p, uint64_t sh, uin
     free(c);
 }
 
-static void test_map_blob(void)
+/* The round trip: equal photon arrays, bounds and parameters, the same bytes
+ * written again, the same answers from the rebuilt tree; the hash checks. */
+static void s_map_round_trip(const pf_photon_maps_t *maps, const pf_buf_t *b, uint64_t sh, uint64_t th)
 {
-    const uint64_t sh = 0x5ce4e5ce4e5ce4e5ULL, th = 0x5e7715e7715e7715ULL;
-    /* The caustic map is empty, as in a scene without mirror or glass. */
-    pf_photon_maps_t maps = s_random_maps(300, 0, 75);
-    pf_buf_t b = { 0 };
-    CHECK(pf_mapfile_write(&maps, sh, th, &b) == 0, "write");
-    CHECK(b.len == S_HDR + 375 * 32, "size %zu", b.len);
-
     pf_photon_maps_t back;
     pf_error_t err = { "" };
-    int rc = pf_mapfile_read(b.data, b.len, sh, th, &back, &err);
+    int rc = pf_mapfile_read(b->data, b->len, sh, th, &back, &err);
     CHECK(rc == 0, "read: %s", err.msg);
     if (rc == 0) {
-        const char *diff = s_maps_diff(&maps, &back);
+        const char *diff = s_maps_diff(maps, &back);
         CHECK(diff == NULL, "round trip differs in %s", diff);
         pf_buf_t b2 = { 0 };
-        CHECK(pf_mapfile_write(&back, sh, th, &b2) == 0 && b2.len == b.len && memcmp(b.data, b2.data, b.len) == 0,
+        CHECK(pf_mapfile_write(&back, sh, th, &b2) == 0 && b2.len == b->len &&
+                  memcmp(b->data, b2.data, b->len) == 0,
               "re-written bytes differ");
         pf_buf_free(&b2);
         /* The rebuilt tree answers queries like the original. */
         pf_knn_t k1[8], k2[8];
-        size_t n1 = pf_kdtree_knn(maps.global, pf_v3(0.5f, -1, 2), 8, INFINITY, k1);
+        size_t n1 = pf_kdtree_knn(maps->global, pf_v3(0.5f, -1, 2), 8, INFINITY, k1);
         size_t n2 = pf_kdtree_knn(back.global, pf_v3(0.5f, -1, 2), 8, INFINITY, k2);
         CHECK(n1 == 8 && n2 == 8 && memcmp(k1, k2, sizeof k1) == 0, "knn on the rebuilt tree");
         pf_photon_maps_free(&back);
     }
-    CHECK(pf_mapfile_read(b.data, b.len, 0, 0, &back, &err) == 0, "0 skips the hash checks: %s", err.msg);
+    CHECK(pf_mapfile_read(b->data, b->len, 0, 0, &back, &err) == 0, "0 skips the hash checks: %s", err.msg);
     pf_photon_maps_free(&back);
-    CHECK(pf_mapfile_read(b.data, b.len, sh + 1, th, &back, &err) == PF_EMISMATCH && strstr(err.msg, "scene hash"),
+    CHECK(pf_mapfile_read(b->data, b->len, sh + 1, th, &back, &err) == PF_EMISMATCH &&
+              strstr(err.msg, "scene hash"),
           "wrong scene: '%s'", err.msg);
-    CHECK(pf_mapfile_read(b.data, b.len, sh, th + 1, &back, &err) == PF_EMISMATCH && strstr(err.msg, "settings hash"),
+    CHECK(pf_mapfile_read(b->data, b->len, sh, th + 1, &back, &err) == PF_EMISMATCH &&
+              strstr(err.msg, "settings hash"),
           "wrong settings: '%s'", err.msg);
+}
 
+/* Each header field and each photon check, by a patch to the blob b. */
+static void s_map_patches(const pf_buf_t *b, uint64_t sh, uint64_t th)
+{
     /* Header: magic 0, version 4, record 6, scene 8, settings 16, emitted 24
      * and 32, radii 40/44/48, maps at 52 (count, lo, hi; 32 bytes each),
      * content hash 148. */
@@ -589,40 +591,49 @@ static void test_map_blob(void)
         { S_HDR + 32 * 5 + 28, 4, 0x00010001u, 0, 1, PF_EPARSE, "global photon 5: split axis 3", "axis 3" },
     };
     for (size_t i = 0; i < sizeof patches / sizeof patches[0]; i++)
-        s_map_patch(&b, &patches[i], sh, th);
+        s_map_patch(b, &patches[i], sh, th);
+}
 
+/* Records out of kd order, and a trailing byte, both re-hashed. */
+static void s_map_order_and_trailing(const pf_buf_t *b, uint64_t sh, uint64_t th)
+{
+    pf_error_t err = { "" };
+    int rc;
     /* The kd order: swap the records of the root and the first photon. */
     {
-        uint8_t *d = malloc(b.len);
-        memcpy(d, b.data, b.len);
+        uint8_t *d = malloc(b->len);
+        memcpy(d, b->data, b->len);
         uint8_t tmp[32];
         uint8_t *p0 = d + S_HDR, *pr = d + S_HDR + 150 * 32;
         memcpy(tmp, p0, 32);
         memcpy(p0, pr, 32);
         memcpy(pr, tmp, 32);
-        s_rehash(d, b.len);
+        s_rehash(d, b->len);
         pf_photon_maps_t m;
-        rc = pf_mapfile_read(d, b.len, sh, th, &m, &err);
+        rc = pf_mapfile_read(d, b->len, sh, th, &m, &err);
         CHECK(rc == PF_EPARSE && strstr(err.msg, "global map's photons are not in kd-tree order"), "kd order: '%s'",
               err.msg);
         free(d);
     }
     /* A trailing byte, even re-hashed: the counts do not account for it. */
     {
-        uint8_t *d = malloc(b.len + 1);
-        memcpy(d, b.data, b.len);
-        d[b.len] = 0;
-        s_rehash(d, b.len + 1);
+        uint8_t *d = malloc(b->len + 1);
+        memcpy(d, b->data, b->len);
+        d[b->len] = 0;
+        s_rehash(d, b->len + 1);
         pf_photon_maps_t m;
-        rc = pf_mapfile_read(d, b.len + 1, sh, th, &m, &err);
+        rc = pf_mapfile_read(d, b->len + 1, sh, th, &m, &err);
         CHECK(rc == PF_EPARSE && strstr(err.msg, "but the blob has 12001"), "trailing: '%s'", err.msg);
         free(d);
     }
-    pf_buf_free(&b);
-    pf_photon_maps_free(&maps);
+}
 
-    /* Every truncation of a small blob. */
-    maps = s_random_maps(40, 7, 10);
+/* Every truncation of a small blob. */
+static void s_map_truncations(uint64_t sh, uint64_t th)
+{
+    pf_photon_maps_t maps = s_random_maps(40, 7, 10);
+    pf_buf_t b = { 0 };
+    pf_error_t err = { "" };
     pf_mapfile_write(&maps, sh, th, &b);
     int bad = 0;
     for (size_t len = 0; len < b.len; len++) {
@@ -630,7 +641,7 @@ static void test_map_blob(void)
         memcpy(d, b.data, len);
         pf_photon_maps_t m;
         err.msg[0] = '\0';
-        rc = pf_mapfile_read(d, len, sh, th, &m, &err);
+        int rc = pf_mapfile_read(d, len, sh, th, &m, &err);
         if (rc == 0 || strncmp(err.msg, "photon-map blob: ", 17) != 0 || m.global)
             bad++;
         pf_photon_maps_free(&m);
@@ -639,30 +650,58 @@ static void test_map_blob(void)
     CHECK(bad == 0, "%d of %zu truncations did not fail cleanly", bad, b.len);
     pf_buf_free(&b);
     pf_photon_maps_free(&maps);
+}
 
-    /* All maps empty; and a missing (NULL) tree travels as an empty one. */
-    maps = s_random_maps(0, 0, 0);
+/* All maps empty; and a missing (NULL) tree travels as an empty one. */
+static void s_map_empty(uint64_t sh, uint64_t th)
+{
+    pf_photon_maps_t maps = s_random_maps(0, 0, 0), back;
+    pf_buf_t b = { 0 };
+    pf_error_t err = { "" };
     pf_kdtree_destroy(&maps.caustic);
     CHECK(pf_mapfile_write(&maps, sh, th, &b) == 0 && b.len == S_HDR, "empty maps write");
-    rc = pf_mapfile_read(b.data, b.len, sh, th, &back, &err);
+    int rc = pf_mapfile_read(b.data, b.len, sh, th, &back, &err);
     CHECK(rc == 0 && back.global && back.caustic && back.irradiance && pf_kdtree_size(back.global) == 0 &&
               pf_kdtree_size(back.caustic) == 0 && pf_kdtree_size(back.irradiance) == 0,
           "empty maps read back: %s", err.msg);
     pf_photon_maps_free(&back);
     pf_buf_free(&b);
     pf_photon_maps_free(&maps);
+}
 
-    /* A larger set, for the timing of the per-photon path. */
-    maps = s_random_maps(100000, 20000, 25000);
+/* A larger set, for the timing of the per-photon path. */
+static void s_map_timing(uint64_t sh, uint64_t th)
+{
+    pf_photon_maps_t maps = s_random_maps(100000, 20000, 25000), back;
+    pf_buf_t b = { 0 };
+    pf_error_t err = { "" };
     double t0 = pf_now();
     pf_mapfile_write(&maps, sh, th, &b);
-    rc = pf_mapfile_read(b.data, b.len, sh, th, &back, &err);
+    int rc = pf_mapfile_read(b.data, b.len, sh, th, &back, &err);
     double dt = pf_now() - t0;
     CHECK(rc == 0 && s_maps_diff(&maps, &back) == NULL, "145k photons round trip: %s", err.msg);
     printf("145000 photons: write + read %.1f ms (%zu bytes)\n", dt * 1e3, b.len);
     pf_photon_maps_free(&back);
     pf_buf_free(&b);
     pf_photon_maps_free(&maps);
+}
+
+static void test_map_blob(void)
+{
+    const uint64_t sh = 0x5ce4e5ce4e5ce4e5ULL, th = 0x5e7715e7715e7715ULL;
+    /* The caustic map is empty, as in a scene without mirror or glass. */
+    pf_photon_maps_t maps = s_random_maps(300, 0, 75);
+    pf_buf_t b = { 0 };
+    CHECK(pf_mapfile_write(&maps, sh, th, &b) == 0, "write");
+    CHECK(b.len == S_HDR + 375 * 32, "size %zu", b.len);
+    s_map_round_trip(&maps, &b, sh, th);
+    s_map_patches(&b, sh, th);
+    s_map_order_and_trailing(&b, sh, th);
+    pf_buf_free(&b);
+    pf_photon_maps_free(&maps);
+    s_map_truncations(sh, th);
+    s_map_empty(sh, th);
+    s_map_timing(sh, th);
 }
 
 static void test_settings_hash(void)

@@ -16,10 +16,10 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "photon/photon.h"
-#include "photon/mapfile.h"
-#include "proto/messages.h"
 #include "base/wire.h"
+#include "photon/mapfile.h"
+#include "photon/photon.h"
+#include "proto/messages.h"
 
 #include "check.h"
 #include "render/frame.h"
@@ -516,9 +516,9 @@ static void s_patch_test(int t, const s_patch_t *p, size_t n)
 
 #define NPATCH(a) (sizeof(a) / sizeof((a)[0]))
 
-static void test_corruptions(void)
+/* Header corruptions, for every type: magic, version, type, a trailing byte. */
+static void s_corrupt_headers(void)
 {
-    /* Header corruptions, for every type. */
     for (int t = 1; t <= PF_MSG_MAX_TYPE; t++) {
         pf_msg_t m;
         s_sample(t, &m);
@@ -553,7 +553,11 @@ static void test_corruptions(void)
         free(c);
         pf_buf_free(&b);
     }
+}
 
+/* The handshake: HELLO, WELCOME, REFUSE. */
+static void s_corrupt_handshake(void)
+{
     /* HELLO: fingerprint 16..23, git string at 24, threads, name. */
     pf_fingerprint_t fp = pf_frame_fingerprint();
     size_t th = 24 + 2 + strlen(fp.git), nm = th + 4;
@@ -581,7 +585,11 @@ static void test_corruptions(void)
         { 16, 2, 0xffff, "reason", 0 },
     };
     s_patch_test(PF_MSG_REFUSE, refuse, NPATCH(refuse));
+}
 
+/* JOB: the settings' ranges and non-finite floats, terms, the tile size. */
+static void s_corrupt_job(void)
+{
     /* JOB: four u64 then the settings at 48 (layout in messages.c), terms at
      * 132, tile_size at 136. */
     const s_patch_t job[] = {
@@ -613,7 +621,11 @@ static void test_corruptions(void)
         { 136, 4, 257, "tile_size", 0 },
     };
     s_patch_test(PF_MSG_JOB, job, NPATCH(job));
+}
 
+/* The blob transfer: BLOB_REQ, BLOB_CHUNK, READY. */
+static void s_corrupt_transfer(void)
+{
     const s_patch_t req[] = {
         { 24, 8, 5, "offset 5 is not a multiple", 0 },
         { 32, 4, 0, "credit 0", 0 },
@@ -648,7 +660,11 @@ static void test_corruptions(void)
         { 16, 4, 1025, "credit 1025", 0 },
     };
     s_patch_test(PF_MSG_READY, ready, NPATCH(ready));
+}
 
+/* The tiles and the goodbye: TILE, RESULT, BYE. */
+static void s_corrupt_tiles(void)
+{
     /* TILE and RESULT: tile 16, attempt 20, x0 24, y0 28, w 32, h 36. */
     const s_patch_t tile[] = {
         { 32, 4, 0, "w 0", 0 },
@@ -679,6 +695,16 @@ static void test_corruptions(void)
         { 16, 2, 12, "trailing", 0 },
     };
     s_patch_test(PF_MSG_BYE, bye, NPATCH(bye));
+}
+
+/* Targeted corruptions: each fails with a reason naming the field. */
+static void test_corruptions(void)
+{
+    s_corrupt_headers();
+    s_corrupt_handshake();
+    s_corrupt_job();
+    s_corrupt_transfer();
+    s_corrupt_tiles();
 }
 
 /* The encoder refuses what the decoder would refuse. */

@@ -1,0 +1,501 @@
+/* jobs.c: the worker's jobs and what they need: the blob cache and blob
+ * transfers (BLOB_REQ / BLOB_CHUNK), the built scene cache, the job's
+ * states (fetch, build, ready, failed), TILE handling and RESULTs.
+ *
+ * Lifetimes. Jobs, built scenes and blobs are reference-counted by the main
+ * thread alone: a work item holds a reference to its job (and a BUILD item
+ * pins its two blobs) from the moment it is queued until the main thread
+ * takes it back from the done list, so the compute thread can read them
+ * without further locks (compute.c). Cancellation (JOB_END, a new job, a
+ * lost coordinator, a signal) sets the job's atomic flag, which the compute
+ * thread checks between rows; queued items of a cancelled job are taken out
+ * of the queue at once.
+ *
+ * This file owns the worker's blobs, built scene cache, BUILD list and
+ * current job (fields of s_worker). Only the main thread calls it; the
+ * compute thread reads a job and its blobs only through the work items. */
+#include <inttypes.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "base/hash.h"
+#include "base/reserve.h"
+#include "photon/mapfile.h"
+#include "worker/worker_impl.h"
+
+#define S_CREDIT 3                /* tiles in flight: one rendering, two queued, so the worker never idles */
+#define S_WINDOW 8                /* blob chunks requested ahead */
+#define S_MAX_BLOBS 4             /* complete blobs kept (LRU) */
+#define S_STALL_S 10.0            /* a transfer with no chunk for this long is requested again */
+#define S_MAX_BLOB_SIZE (UINT64_C(1) << 36) /* 64 GiB: anything larger is not a scene or a map */
+
+/* ---- builds under way ---- */
+
+/* The main thread's record of BUILD items out with the compute thread, so a
+ * job can wait for a build of its scene and maps already under way instead
+ * of starting a second one. */
+static void s_build_forget(s_worker *w, const s_work *it)
+{
+    for (s_work **pp = &w->builds; *pp; pp = &(*pp)->next_build)
+        if (*pp == it) {
+            *pp = it->next_build;
+            return;
+        }
+}
+
+/* Do two jobs need the same built scene and maps? */
+static int s_same_build(const pf_msg_job_t *a, const pf_msg_job_t *b)
+{
+    return a->scene_hash == b->scene_hash && a->scene_size == b->scene_size && a->maps_hash == b->maps_hash &&
+           a->maps_size == b->maps_size && pf_settings_hash(&a->settings) == pf_settings_hash(&b->settings);
+}
+
+static int s_built_fits(const s_built *c, const pf_msg_job_t *d)
+{
+    return c && c->scene_hash == d->scene_hash && c->maps_hash == d->maps_hash &&
+           c->settings_hash == pf_settings_hash(&d->settings);
+}
+
+static int s_build_pending(const s_worker *w, const pf_msg_job_t *d)
+{
+    for (const s_work *b = w->builds; b; b = b->next_build)
+        if (s_same_build(&b->job->desc, d))
+            return 1;
+    return 0;
+}
+
+/* ---- blobs ---- */
+
+static s_blob *s_blob_find(s_worker *w, uint64_t hash, uint64_t size)
+{
+    for (size_t i = 0; i < w->nblobs; i++)
+        if (w->blobs[i]->hash == hash && w->blobs[i]->size == size)
+            return w->blobs[i];
+    return NULL;
+}
+
+static void s_blob_remove(s_worker *w, size_t i)
+{
+    free(w->blobs[i]->data);
+    free(w->blobs[i]);
+    w->blobs[i] = w->blobs[--w->nblobs];
+}
+
+static int s_blob_needed(const s_worker *w, const s_blob *b)
+{
+    const s_job *j = w->job;
+    if (!j || j->state == S_JOB_FAILED)
+        return 0;
+    return (b->hash == j->desc.scene_hash && b->size == j->desc.scene_size) ||
+           (b->hash == j->desc.maps_hash && b->size == j->desc.maps_size);
+}
+
+/* Drops transfers no current job needs, then the least recently used
+ * complete blobs beyond S_MAX_BLOBS (never one pinned by a build or needed
+ * by the current job; the cache may run over while those are in use). */
+static void s_blobs_trim(s_worker *w)
+{
+    for (size_t i = 0; i < w->nblobs;) {
+        s_blob *b = w->blobs[i];
+        if (!b->complete && !b->pins && !s_blob_needed(w, b)) {
+            pf_w_log(w, PF_LOG_DEBUG, "dropping the unfinished transfer of blob %016" PRIx64, b->hash);
+            s_blob_remove(w, i);
+        } else {
+            i++;
+        }
+    }
+    for (;;) {
+        size_t complete = 0, victim = SIZE_MAX;
+        for (size_t i = 0; i < w->nblobs; i++) {
+            s_blob *b = w->blobs[i];
+            if (!b->complete)
+                continue;
+            complete++;
+            if (!b->pins && !s_blob_needed(w, b) && (victim == SIZE_MAX || b->used < w->blobs[victim]->used))
+                victim = i;
+        }
+        if (complete <= S_MAX_BLOBS || victim == SIZE_MAX)
+            return;
+        pf_w_log(w, PF_LOG_DEBUG, "evicting cached blob %016" PRIx64, w->blobs[victim]->hash);
+        s_blob_remove(w, victim);
+    }
+}
+
+/* Asks for more chunks so that about S_WINDOW are outstanding. */
+static void s_blob_request(s_worker *w, s_blob *b)
+{
+    uint64_t chunk = PF_PROTO_CHUNK_SIZE;
+    uint64_t outstanding = (b->requested - b->received + chunk - 1) / chunk;
+    if (b->requested >= b->size || outstanding > S_WINDOW / 2)
+        return;
+    uint64_t left = (b->size - b->requested + chunk - 1) / chunk;
+    uint64_t credit = S_WINDOW - outstanding;
+    if (credit > left)
+        credit = left;
+    pf_msg_t m;
+    memset(&m, 0, sizeof m);
+    m.type = PF_MSG_BLOB_REQ;
+    m.job = w->job ? w->job->id : 0;
+    m.u.blob_req.hash = b->hash;
+    m.u.blob_req.offset = b->requested;
+    m.u.blob_req.credit = (uint32_t)credit;
+    pf_w_send(w, &m, 0);
+    b->requested += credit * chunk;
+    if (b->requested > b->size)
+        b->requested = b->size;
+}
+
+/* Starts (or restarts from its last in-order byte) the transfer of b. */
+static void s_blob_restart(s_worker *w, s_blob *b)
+{
+    b->requested = b->received;
+    b->last_chunk = pf_now();
+    s_blob_request(w, b);
+}
+
+/* The cached or in-transfer blob (hash, size), starting its transfer when
+ * it is not there. NULL when the size is absurd or memory is short. */
+static s_blob *s_blob_get(s_worker *w, uint64_t hash, uint64_t size, const char *what)
+{
+    s_blob *b = s_blob_find(w, hash, size);
+    if (b) {
+        b->used = ++w->tick;
+        return b;
+    }
+    if (size == 0 || size > S_MAX_BLOB_SIZE) {
+        pf_w_log(w, PF_LOG_ERROR, "job %" PRIu64 ": the %s blob's size %" PRIu64 " is out of range", w->job->id, what,
+                 size);
+        return NULL;
+    }
+    if (pf_reserve((void **)&w->blobs, &w->cap_blobs, w->nblobs + 1, sizeof *w->blobs))
+        return NULL;
+    b = calloc(1, sizeof *b);
+    uint8_t *data = malloc((size_t)size);
+    if (!b || !data) {
+        free(b);
+        free(data);
+        pf_w_log(w, PF_LOG_ERROR, "job %" PRIu64 ": cannot allocate %" PRIu64 " bytes for the %s blob", w->job->id,
+                 size, what);
+        return NULL;
+    }
+    b->hash = hash;
+    b->size = size;
+    b->data = data;
+    b->used = ++w->tick;
+    w->blobs[w->nblobs++] = b;
+    pf_w_log(w, PF_LOG_INFO, "fetching the %s blob %016" PRIx64 " (%.1f MB)", what, hash, (double)size / 1e6);
+    s_blob_restart(w, b);
+    return b;
+}
+
+/* ---- jobs ---- */
+
+/* Cancels the current job: its queued work leaves the queue, the tile being
+ * rendered stops at the next row, and results still to come are discarded. */
+void pf_w_job_drop(s_worker *w, const char *why)
+{
+    s_job *j = w->job;
+    if (!j)
+        return;
+    pf_w_log(w, PF_LOG_DEBUG, "dropping job %" PRIu64 " (%s)", j->id, why);
+    atomic_store(&j->cancelled, 1);
+    w->job = NULL;
+    s_work *drop = pf_w_unqueue_job(w, j);
+    while (drop) {
+        s_work *next = drop->next;
+        if (drop->kind == S_WORK_TILE)
+            w->tiles_held--;
+        else
+            s_build_forget(w, drop);
+        pf_w_work_free(drop);
+        drop = next;
+    }
+    pf_w_job_release(j);
+    s_blobs_trim(w);
+}
+
+static void s_job_fail(s_worker *w, s_job *j, const char *why)
+{
+    pf_w_log(w, PF_LOG_ERROR, "job %" PRIu64 ": %s; taking no tiles for it", j->id, why);
+    j->state = S_JOB_FAILED;
+    s_blobs_trim(w);
+}
+
+/* The scene and maps are built: render context, then READY. */
+static void s_job_ready(s_worker *w, s_job *j, s_built *b)
+{
+    b->refs++;
+    j->built = b;
+    pf_render_ctx_init(&j->ctx, &b->frame, &j->desc.settings);
+    j->ctx.terms = j->desc.terms;
+    j->ctx.dropped = &j->dropped;
+    j->state = S_JOB_READY;
+    pf_w_log(w, PF_LOG_INFO, "job %" PRIu64 ": ready (%dx%d, %d spp)", j->id, j->desc.settings.width,
+             j->desc.settings.height, j->desc.settings.spp);
+    pf_msg_t m;
+    memset(&m, 0, sizeof m);
+    m.type = PF_MSG_READY;
+    m.job = j->id;
+    m.u.ready.credit = S_CREDIT;
+    pf_w_send(w, &m, 0);
+}
+
+/* Once both blobs are complete: reuse the built scene when it is the same,
+ * else hand the build to the compute thread. */
+static void s_job_advance(s_worker *w)
+{
+    s_job *j = w->job;
+    if (!j || j->state != S_JOB_FETCH)
+        return;
+    const pf_msg_job_t *d = &j->desc;
+    s_blob *sb = s_blob_find(w, d->scene_hash, d->scene_size), *mb = s_blob_find(w, d->maps_hash, d->maps_size);
+    if (!sb || !mb || !sb->complete || !mb->complete)
+        return;
+    if (s_built_fits(w->built_cache, d)) {
+        pf_w_log(w, PF_LOG_DEBUG, "job %" PRIu64 ": reusing the built scene and maps", j->id);
+        s_job_ready(w, j, w->built_cache);
+        return;
+    }
+    if (s_build_pending(w, d)) {
+        /* An earlier job's build of the same blobs is running; its result
+         * will be cached and serve this job (pf_w_drain_done). */
+        pf_w_log(w, PF_LOG_DEBUG, "job %" PRIu64 ": waiting for the build already under way", j->id);
+        j->state = S_JOB_BUILD;
+        return;
+    }
+    s_work *it = calloc(1, sizeof *it);
+    if (!it) {
+        s_job_fail(w, j, "out of memory");
+        return;
+    }
+    it->kind = S_WORK_BUILD;
+    it->job = j;
+    j->refs++;
+    it->scene_blob = sb;
+    it->maps_blob = mb;
+    sb->pins++;
+    mb->pins++;
+    j->state = S_JOB_BUILD;
+    pf_w_log(w, PF_LOG_INFO, "job %" PRIu64 ": building the scene and photon maps", j->id);
+    it->next_build = w->builds;
+    w->builds = it;
+    pf_w_enqueue(w, it);
+}
+
+void pf_w_on_job(s_worker *w, const pf_msg_t *m)
+{
+    const pf_msg_job_t *d = &m->u.job;
+    if (w->job && w->job->id == m->job) {
+        pf_w_log(w, PF_LOG_DEBUG, "job %" PRIu64 " announced again; ignored", m->job);
+        return;
+    }
+    pf_w_job_drop(w, "a new job arrived");
+    s_job *j = calloc(1, sizeof *j);
+    if (!j) {
+        pf_w_log(w, PF_LOG_ERROR, "job %" PRIu64 ": out of memory", m->job);
+        return;
+    }
+    j->id = m->job;
+    j->desc = *d;
+    j->refs = 1;
+    atomic_init(&j->cancelled, 0);
+    w->job = j;
+    pf_w_log(w, PF_LOG_INFO, "job %" PRIu64 ": scene %016" PRIx64 " (%" PRIu64 " bytes), maps %016" PRIx64
+             " (%" PRIu64 " bytes)", j->id, d->scene_hash, d->scene_size, d->maps_hash, d->maps_size);
+    /* The decoder checked the ranges; these guard the renderer's own limits
+     * (estimate scratch, term mask) whatever the decoder lets through. */
+    if (d->settings.global_k < 1 || d->settings.global_k > PF_MAX_K || d->settings.caustic_k < 1 ||
+        d->settings.caustic_k > PF_MAX_K || d->settings.width < 1 || d->settings.height < 1 ||
+        (d->terms & ~(unsigned)(PF_TERM_ALL | PF_TERM_PHOTONMAP)) != 0) {
+        s_job_fail(w, j, "settings out of the renderer's range");
+        return;
+    }
+    if (!s_blob_get(w, d->scene_hash, d->scene_size, "scene") || !s_blob_get(w, d->maps_hash, d->maps_size, "maps")) {
+        s_job_fail(w, j, "cannot fetch its blobs");
+        return;
+    }
+    s_blobs_trim(w);
+    s_job_advance(w);
+}
+
+void pf_w_on_chunk(s_worker *w, const pf_msg_blob_chunk_t *c)
+{
+    s_blob *b = s_blob_find(w, c->hash, c->total);
+    if (!b || b->complete) {
+        pf_w_log(w, PF_LOG_DEBUG, "chunk of blob %016" PRIx64 " not being fetched; dropped", c->hash);
+        return;
+    }
+    uint64_t expect = b->size - b->received < PF_PROTO_CHUNK_SIZE ? b->size - b->received : PF_PROTO_CHUNK_SIZE;
+    if (c->offset != b->received || c->len != expect) {
+        /* A gap or a replay; the stall timer asks again from b->received. */
+        pf_w_log(w, PF_LOG_DEBUG, "chunk of blob %016" PRIx64 " at %" PRIu64 " (+%" PRIu32 ") out of order, expected %"
+                 PRIu64 "; dropped", c->hash, c->offset, c->len, b->received);
+        return;
+    }
+    memcpy(b->data + b->received, c->data, c->len);
+    b->received += c->len;
+    b->last_chunk = pf_now();
+    if (b->received < b->size) {
+        s_blob_request(w, b);
+        return;
+    }
+    uint64_t h = pf_hash_bytes(PF_HASH_INIT, b->data, (size_t)b->size);
+    if (h != b->hash) {
+        b->failures++;
+        b->received = b->requested = 0;
+        if (b->failures < 2) {
+            pf_w_log(w, PF_LOG_WARN, "blob %016" PRIx64 " arrived with content hash %016" PRIx64 "; fetching it again",
+                     b->hash, h);
+            s_blob_restart(w, b);
+            return;
+        }
+        for (size_t i = 0; i < w->nblobs; i++)
+            if (w->blobs[i] == b) {
+                s_blob_remove(w, i);
+                break;
+            }
+        if (w->job && w->job->state == S_JOB_FETCH) {
+            char why[160];
+            snprintf(why, sizeof why, "blob %016" PRIx64 " failed its content hash twice", c->hash);
+            s_job_fail(w, w->job, why);
+        }
+        return;
+    }
+    b->complete = 1;
+    b->used = ++w->tick;
+    pf_w_log(w, PF_LOG_DEBUG, "blob %016" PRIx64 " complete (%" PRIu64 " bytes)", b->hash, b->size);
+    s_blobs_trim(w);
+    s_job_advance(w);
+}
+
+void pf_w_on_tile(s_worker *w, const pf_msg_t *m)
+{
+    const pf_msg_tile_t *t = &m->u.tile;
+    s_job *j = w->job;
+    if (!j || j->id != m->job) {
+        pf_w_log(w, PF_LOG_DEBUG, "TILE %" PRIu32 " of job %" PRIu64 ", which is not the current job; dropped", t->tile,
+                 m->job);
+        return;
+    }
+    if (j->state != S_JOB_READY) {
+        if (j->state == S_JOB_FAILED)
+            pf_w_log(w, PF_LOG_DEBUG, "TILE %" PRIu32 " of job %" PRIu64 ", which this worker rejected; dropped",
+                     t->tile, m->job);
+        else
+            pf_w_log(w, PF_LOG_WARN, "TILE %" PRIu32 " of job %" PRIu64 " before READY; dropped", t->tile, m->job);
+        return;
+    }
+    uint64_t W = (uint64_t)j->desc.settings.width, H = (uint64_t)j->desc.settings.height;
+    if (t->w < 1 || t->h < 1 || (uint64_t)t->x0 + t->w > W || (uint64_t)t->y0 + t->h > H ||
+        (uint64_t)t->w * t->h > PF_PROTO_MAX_TILE_PIXELS) {
+        pf_w_log(w, PF_LOG_WARN, "TILE %" PRIu32 " of job %" PRIu64 ": %" PRIu32 "x%" PRIu32 " at (%" PRIu32
+                 ", %" PRIu32 ") is not inside the %" PRIu64 "x%" PRIu64 " image; dropped", t->tile, m->job, t->w, t->h,
+                 t->x0, t->y0, W, H);
+        return;
+    }
+    s_work *it = calloc(1, sizeof *it);
+    float *rgb = malloc((size_t)t->w * t->h * 3 * sizeof *rgb);
+    if (!it || !rgb) {
+        free(it);
+        free(rgb);
+        pf_w_log(w, PF_LOG_ERROR, "out of memory for TILE %" PRIu32, t->tile);
+        return;
+    }
+    it->kind = S_WORK_TILE;
+    it->job = j;
+    j->refs++;
+    it->tile = *t;
+    it->rgb = rgb;
+    w->tiles_held++;
+    pf_w_enqueue(w, it);
+}
+
+/* Takes finished items back from the compute thread. */
+void pf_w_drain_done(s_worker *w)
+{
+    s_work *list = pf_w_take_done(w);
+    while (list) {
+        s_work *it = list;
+        list = it->next;
+        s_job *j = it->job;
+        int current = j == w->job && !atomic_load(&j->cancelled);
+        if (it->kind == S_WORK_BUILD) {
+            s_build_forget(w, it);
+            if (it->built) {
+                /* Cache the build even if its job is gone: the next job
+                 * with the same scene and maps will want it. */
+                pf_w_built_release(w->built_cache);
+                w->built_cache = it->built;
+                it->built = NULL;
+            }
+            /* The current job may be this item's or one waiting for it. */
+            s_job *cj = w->job;
+            if (cj && cj->state == S_JOB_BUILD && s_same_build(&cj->desc, &j->desc)) {
+                if (s_built_fits(w->built_cache, &cj->desc)) {
+                    s_job_ready(w, cj, w->built_cache);
+                } else if (it->error[0]) {
+                    s_job_fail(w, cj, it->error);
+                } else if (!s_build_pending(w, &cj->desc)) {
+                    /* The build was skipped (its job was cancelled before it
+                     * started): build again for this one. */
+                    cj->state = S_JOB_FETCH;
+                    s_job_advance(w);
+                }
+            }
+        } else {
+            w->tiles_held--;
+            if (current && it->rendered && w->conn == S_ONLINE) {
+                pf_msg_t m;
+                memset(&m, 0, sizeof m);
+                m.type = PF_MSG_RESULT;
+                m.job = j->id;
+                pf_msg_result_t *r = &m.u.result;
+                r->tile = it->tile.tile;
+                r->attempt = it->tile.attempt;
+                r->x0 = it->tile.x0;
+                r->y0 = it->tile.y0;
+                r->w = it->tile.w;
+                r->h = it->tile.h;
+                r->rgb = it->rgb;
+                r->render_us = it->render_us;
+                pf_w_send(w, &m, 0);
+            } else {
+                pf_w_log(w, PF_LOG_DEBUG, "tile %" PRIu32 " of job %" PRIu64 " discarded (job ended)", it->tile.tile,
+                         j->id);
+            }
+        }
+        int was_build = it->kind == S_WORK_BUILD;
+        pf_w_work_free(it);
+        if (was_build)
+            s_blobs_trim(w); /* its blobs are unpinned now */
+    }
+}
+
+/* ---- timers and exit ---- */
+
+void pf_w_blobs_resume(s_worker *w, double gap)
+{
+    for (size_t i = 0; i < w->nblobs; i++)
+        w->blobs[i]->last_chunk += gap;
+}
+
+void pf_w_blobs_check_stalls(s_worker *w, double now)
+{
+    for (size_t i = 0; i < w->nblobs; i++) {
+        s_blob *b = w->blobs[i];
+        if (!b->complete && s_blob_needed(w, b) && now - b->last_chunk > S_STALL_S) {
+            pf_w_log(w, PF_LOG_WARN, "transfer of blob %016" PRIx64 " stalled at %" PRIu64 " of %" PRIu64
+                     " bytes; asking again", b->hash, b->received, b->size);
+            s_blob_restart(w, b);
+        }
+    }
+}
+
+void pf_w_cache_free(s_worker *w)
+{
+    pf_w_built_release(w->built_cache);
+    while (w->nblobs)
+        s_blob_remove(w, 0);
+    free(w->blobs);
+}

@@ -1,0 +1,209 @@
+/* worker_impl.h: private to worker/. The state the worker's files share,
+ * and the pf_w_ functions they call across the file boundary, each file
+ * calling only those below it:
+ *
+ *   loop.c     the protocol state machine and the socket (main thread);
+ *   jobs.c     jobs, the blob cache and transfers, the built scene cache,
+ *              TILE and RESULT handling (main thread);
+ *   compute.c  the compute thread, its work queue and the reference-counted
+ *              work items, jobs and built frames;
+ *   outbox.c   log lines and messages to the coordinator, the outbox.
+ *
+ * Nothing outside worker/ includes this header; the public interface is
+ * loop.h. Everything here is owned and reference-counted by the main thread
+ * unless a field says otherwise (see jobs.c for the lifetimes, compute.c for
+ * the hand-over to the compute thread). */
+#ifndef PF_WORKER_IMPL_H
+#define PF_WORKER_IMPL_H
+
+#include <pthread.h>
+#include <stdatomic.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "base/log.h"
+#include "base/wire.h"
+#include "proto/messages.h"
+#include "render/render.h"
+
+/* ---- the pieces of state ----
+ *
+ * The types keep the s_ names they had when all of this was one file;
+ * they are private to worker/ all the same. */
+
+/* A blob (scene or maps) being received or held in the cache. */
+typedef struct s_blob {
+    uint64_t hash, size;
+    uint8_t *data;
+    uint64_t received;  /* bytes received, in order, from offset 0 */
+    uint64_t requested; /* end of the range asked for so far */
+    int complete;       /* received and hash-checked */
+    int failures;       /* transfers that failed the hash check */
+    int pins;           /* BUILD items reading data */
+    uint64_t used;      /* LRU tick */
+    double last_chunk;  /* pf_now() of the last chunk (or of the request) */
+} s_blob;
+
+/* What a job needs to render, built once per (scene hash, maps hash,
+ * settings hash): the maps were validated against the settings hash, so a
+ * job whose settings would change the maps must not reuse them. */
+typedef struct s_built {
+    uint64_t scene_hash, maps_hash, settings_hash;
+    pf_frame_t frame;
+    int refs; /* the cache's and each job's; main thread only */
+} s_built;
+
+typedef enum { S_JOB_FETCH, S_JOB_BUILD, S_JOB_READY, S_JOB_FAILED } s_job_state;
+
+typedef struct s_job {
+    uint64_t id;
+    pf_msg_job_t desc;
+    s_job_state state;
+    s_built *built;      /* once built */
+    pf_render_ctx_t ctx; /* once built; read-only for the compute thread */
+    uint64_t dropped;    /* camera samples left out (ctx.dropped points here; atomic) */
+    atomic_int cancelled;
+    int refs;            /* the worker's current-job pointer and each work item; main thread only */
+} s_job;
+
+typedef enum { S_WORK_BUILD, S_WORK_TILE } s_work_kind;
+
+typedef struct s_work {
+    struct s_work *next;
+    struct s_work *next_build; /* the main thread's list of BUILD items not yet taken back */
+    s_work_kind kind;
+    s_job *job;
+    /* S_WORK_TILE */
+    pf_msg_tile_t tile;
+    float *rgb;
+    uint32_t render_us;
+    int rendered; /* every row done (not cancelled half-way) */
+    /* S_WORK_BUILD */
+    s_blob *scene_blob, *maps_blob; /* pinned while queued */
+    s_built *built;                 /* the result, or NULL with error set */
+    char error[1100];
+} s_work;
+
+/* The compute thread's in and out lists. */
+typedef struct s_queue {
+    pthread_mutex_t mu;
+    pthread_cond_t cv;
+    s_work *todo, *todo_tail;
+    s_work *done, *done_tail;
+    int quit;
+    int wake[2]; /* pipe: the compute thread writes a byte when done gains an item */
+} s_queue;
+
+/* An encoded message waiting for the socket to accept it. */
+typedef struct s_out {
+    struct s_out *next;
+    size_t len;
+    uint8_t data[];
+} s_out;
+
+typedef enum { S_OFFLINE, S_HELLO, S_ONLINE } s_conn;
+
+typedef struct s_worker {
+    const struct pf_worker_opts *opts; /* loop.h */
+    char name[256];
+    int threads;
+    int curve;
+    char public_key[41], secret_key[41], server_key[41];
+
+    void *zctx;
+    void *sock, *monitor;
+    unsigned monitor_seq;
+    s_conn conn;
+    int hello_sent;
+    double opened;       /* when the socket was opened */
+    double last_recv;    /* any message from the coordinator */
+    double last_hb;      /* our last HEARTBEAT */
+    double last_tick;    /* the last pass of the main loop */
+    uint32_t hb_ms;
+    double backoff_s;
+    int served; /* a coordinator has welcomed this worker at least once */
+    double reconnect_at;
+    s_out *out, *out_tail;
+    pf_buf_t enc;
+    unsigned malformed;
+
+    s_blob **blobs;
+    size_t nblobs, cap_blobs;
+    uint64_t tick;
+    s_built *built_cache;
+    s_work *builds; /* BUILD items queued or running */
+    s_job *job;
+
+    s_queue q;
+    pthread_t compute;
+    int compute_started;
+    atomic_uint_fast64_t progress; /* pixels rendered since start */
+    uint32_t tiles_held;           /* TILEs received and not yet answered or dropped */
+
+    int finished, exit_code;
+} s_worker;
+
+/* ---- jobs.c: jobs, blobs, results (main thread) ---- */
+
+/* Message handlers for JOB, BLOB_CHUNK and TILE. */
+void pf_w_on_job(s_worker *w, const pf_msg_t *m);
+void pf_w_on_chunk(s_worker *w, const pf_msg_blob_chunk_t *c);
+void pf_w_on_tile(s_worker *w, const pf_msg_t *m);
+/* Cancels the current job (if any); why goes to the debug log. */
+void pf_w_job_drop(s_worker *w, const char *why);
+/* Takes finished items back from the compute thread and sends the RESULTs. */
+void pf_w_drain_done(s_worker *w);
+/* Moves the transfers' stall clocks on by gap seconds (the loop was stopped). */
+void pf_w_blobs_resume(s_worker *w, double gap);
+/* Asks again for the needed transfers that have had no chunk for too long. */
+void pf_w_blobs_check_stalls(s_worker *w, double now);
+/* Frees the built scene cache and every blob (at exit, the compute thread joined). */
+void pf_w_cache_free(s_worker *w);
+
+/* ---- compute.c: the compute thread, its queue and the work items ---- */
+
+/* Drop one reference; the last one frees. NULL-safe. A fresh s_built may
+ * also be released by the compute thread that made it (no one else holds it). */
+void pf_w_built_release(s_built *b);
+/* Drops one reference to a job; the last one frees it (and releases its build). NULL-safe. */
+void pf_w_job_release(s_job *j);
+/* Frees a work item, unpinning its blobs and releasing its job and build. NULL-safe. */
+void pf_w_work_free(s_work *it);
+
+
+/* Sets up the queue's mutex, condition variable and wake-up pipe. 0, or
+ * -1 after a message on stderr. */
+int pf_w_queue_init(s_queue *q);
+/* Starts the compute thread (SIGINT and SIGTERM blocked in it). 0, or
+ * -1 after a message on stderr. */
+int pf_w_compute_start(s_worker *w);
+/* Stops and joins the compute thread, if started, and frees what is left in
+ * its lists. */
+void pf_w_compute_stop(s_worker *w);
+/* Closes the wake-up pipe and destroys the mutex and condition variable, if
+ * pf_w_queue_init got that far. */
+void pf_w_queue_destroy(s_queue *q);
+/* Hands it to the compute thread (appends to the todo list). */
+void pf_w_enqueue(s_worker *w, s_work *it);
+/* Takes the queued (not yet started) items of job out of the queue and
+ * returns them, linked by next, for the caller to free. */
+s_work *pf_w_unqueue_job(s_worker *w, const s_job *job);
+/* Empties the wake-up pipe and takes the whole done list (linked by next). */
+s_work *pf_w_take_done(s_worker *w);
+
+/* ---- outbox.c: logging and sending (main thread; pf_w_log any thread) ---- */
+
+/* Logs with the worker's name, so lines from several local workers sharing
+ * a terminal can be told apart. */
+void pf_w_log(const s_worker *w, pf_log_level level, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
+
+/* Encodes and sends msg without blocking. When the socket cannot take it
+ * now (no connection yet, or the high-water mark), a droppable message
+ * (HEARTBEAT) is dropped and any other waits in the outbox, in order. */
+void pf_w_send(s_worker *w, const pf_msg_t *msg, int droppable);
+/* Sends what waits in the outbox, in order, as far as the socket takes it. */
+void pf_w_flush(s_worker *w);
+/* Drops what waits in the outbox (the socket is closing). */
+void pf_w_outbox_clear(s_worker *w);
+
+#endif
