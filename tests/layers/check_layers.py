@@ -12,12 +12,17 @@ them). This checks, and names file:line for every breach:
      libraries that layer is allowed (proto/ and everything below it never
      reach Embree, libpng or cJSON, even through another layer);
   3. no circle of files: with a header and its source taken as one module,
-     the include graph of the whole tree has no cycle.
+     the include graph of the whole tree has no cycle;
+  4. the sizes the house keeps (docs/architecture.md): no C file of the tree
+     over 1000 lines, no function over 150 (a function starts at a line
+     "{" in column 0 and ends at the next "}" in column 0).
 
 bench/ and fuzz/ are tools above the libraries: they may use any layer but
 the two programs (coordinator/, worker/). tests/ may include anything.
 
 usage: check_layers.py [ROOT]      (default: the repository this file is in)
+       check_layers.py --stats [ROOT] (C lines per folder and their share,
+                                    the longest files and functions)
        check_layers.py --self-test (plants bad includes, links and a circle
                                     in a copy of the tree; each must fail)
 Exit status 0 when the tree keeps the rules, 1 with one line per breach.
@@ -234,8 +239,69 @@ def check_circles(root):
     return bad
 
 
+MAX_FILE_LINES = 1000
+MAX_FUNCTION_LINES = 150
+
+
+def all_c_files(root):
+    out = []
+    for dirpath, dirnames, filenames in os.walk(root):
+        dirnames[:] = sorted(d for d in dirnames if not d.startswith(("build", ".")))
+        for f in sorted(filenames):
+            if f.endswith(SOURCE):
+                out.append(os.path.relpath(os.path.join(dirpath, f), root))
+    return out
+
+
+def functions(root, path):
+    """(first line, length, signature) of each function body of path."""
+    lines = open(os.path.join(root, path), encoding="utf-8", errors="replace").read().split("\n")
+    start = None
+    for i, line in enumerate(lines):
+        if line.startswith("{") and start is None:
+            j = i - 1
+            while j > 0 and lines[j - 1].strip() and not lines[j - 1].rstrip().endswith((";", "}", "*/")) \
+                    and not lines[j - 1].startswith("#"):
+                j -= 1
+            start = (i, lines[j].strip() if j >= 0 else "")
+        elif line.startswith("}") and start is not None:
+            yield start[0] + 1, i - start[0] + 1, start[1]
+            start = None
+
+
+def check_sizes(root):
+    bad = []
+    for path in all_c_files(root):
+        n = sum(1 for _ in open(os.path.join(root, path), encoding="utf-8", errors="replace"))
+        if n > MAX_FILE_LINES:
+            bad.append(f"{path}: {n} lines, over {MAX_FILE_LINES}: split it by idea")
+        for line, length, sig in functions(root, path):
+            if length > MAX_FUNCTION_LINES:
+                bad.append(f"{path}:{line}: a function of {length} lines, over {MAX_FUNCTION_LINES} "
+                           f"({sig[:60]}): split it into named steps")
+    return bad
+
+
+def stats(root):
+    per, total, files, funcs = {}, 0, [], []
+    for path in all_c_files(root):
+        n = sum(1 for _ in open(os.path.join(root, path), encoding="utf-8", errors="replace"))
+        folder = os.path.dirname(path) or "."
+        per[folder] = per.get(folder, 0) + n
+        total += n
+        files.append((n, path))
+        funcs += [(length, f"{path}:{line}") for line, length, _ in functions(root, path)]
+    print(f"{total} lines of C in {len(files)} files")
+    for folder, n in sorted(per.items(), key=lambda kv: -kv[1])[:6]:
+        print(f"  folder {folder + '/':22s} {n:6d} lines  {100.0 * n / total:5.1f} %")
+    for n, path in sorted(files, reverse=True)[:3]:
+        print(f"  file {path}: {n} lines")
+    for n, where in sorted(funcs, reverse=True)[:3]:
+        print(f"  function at {where}: {n} lines")
+
+
 def check(root):
-    return check_includes(root) + check_links(root) + check_circles(root)
+    return check_includes(root) + check_links(root) + check_circles(root) + check_sizes(root)
 
 
 def self_test():
@@ -252,6 +318,7 @@ def self_test():
          "Embree under proto"),
         ("scene/camera.h", '#include "scene/scene.h"\n#include "scene/camera_extra.h"\n', "circle of files",
          "a circle of files"),
+        ("base/hash.c", "void pf_long(void)\n{\n" + "    ;\n" * 150 + "}\n", "base/hash.c:", "a function over 150 lines"),
     ]
     for path, text, expect, what in plants:
         with tempfile.TemporaryDirectory() as tmp:
@@ -274,9 +341,13 @@ def self_test():
 
 
 def main():
+    if len(sys.argv) > 1 and sys.argv[1] == "--stats":
+        stats(sys.argv[2] if len(sys.argv) > 2 else os.path.abspath(
+            os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..")))
+        return 0
     if len(sys.argv) > 1 and sys.argv[1] == "--self-test":
         failures = self_test()
-        print(f"{5 - failures} passed, {failures} failed")
+        print(f"{6 - failures} passed, {failures} failed")
         return 1 if failures else 0
     root = sys.argv[1] if len(sys.argv) > 1 else os.path.abspath(
         os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", ".."))
