@@ -57,9 +57,36 @@ static int s_material_ref(s_ctx_t *c, const cJSON *v, const char *key, const cha
 /* ------------------------------------------------------------------------ */
 /* Sections                                                                 */
 
+/* The thin lens: "lens_radius" (>= 0; 0, the default, is the pinhole) and
+ * "focal_distance" (> 0; by default the distance from position to look_at,
+ * so that the look-at point is in focus). */
+static int s_camera_lens(s_ctx_t *c, const cJSON *cam, pf_camera_desc_t *d)
+{
+    const char *what = "camera";
+    const cJSON *v;
+    int rc = PF_OK;
+    if ((v = pf_json_get(cam, "lens_radius")) && !(rc = pf_json_float(c, v, "lens_radius", what, &d->lens_radius)) &&
+        !(d->lens_radius >= 0.0f && d->lens_radius <= 1e18f))
+        rc = S_FAIL_AT(c, v, "'lens_radius' in camera must be >= 0 and at most 1e18 (got %g)", (double)d->lens_radius);
+    if (rc)
+        return rc;
+    if ((v = pf_json_get(cam, "focal_distance"))) {
+        if (!(rc = pf_json_float(c, v, "focal_distance", what, &d->focal_distance)) &&
+            !(d->focal_distance > 0.0f && d->focal_distance <= 1e18f))
+            rc = S_FAIL_AT(c, v, "'focal_distance' in camera must be > 0 and at most 1e18 (got %g)",
+                           (double)d->focal_distance);
+    } else if (d->lens_radius > 0.0f) {
+        d->focal_distance = pf_len(pf_sub(d->look_at, d->pos));
+        if (!(d->focal_distance <= 1e18f))
+            rc = S_FAIL_AT(c, cam, "camera: 'look_at' is %g from 'position', too far to be the focal distance; "
+                           "give 'focal_distance'", (double)d->focal_distance);
+    }
+    return rc;
+}
+
 static int s_camera(s_ctx_t *c, const cJSON *cam)
 {
-    static const char *const keys[] = { "position", "look_at", "up", "fov", NULL };
+    static const char *const keys[] = { "position", "look_at", "up", "fov", "lens_radius", "focal_distance", NULL };
     const char *what = "camera";
     int rc = pf_json_check_object(c, cam, what, keys);
     const cJSON *pos = NULL, *at = NULL, *v;
@@ -84,6 +111,8 @@ static int s_camera(s_ctx_t *c, const cJSON *cam)
         return S_FAIL_AT(c, at, "'look_at' in camera must differ from 'position'");
     if (!(pf_len2(pf_cross(pf_norm(view), pf_norm(d.up))) > 1e-12f))
         return S_FAIL_AT(c, cam, "camera 'up' must not be parallel to the view direction");
+    if ((rc = s_camera_lens(c, cam, &d)))
+        return rc;
     c->scene->camera = d;
     c->scene->has_camera = 1;
     return PF_OK;

@@ -6,7 +6,8 @@
  *   u32 magic PF_SCENEBLOB_MAGIC, u16 version PF_SCENEBLOB_VERSION, u16 0
  *   str path                      (where the scene came from; for messages only)
  *   settings                      (the field group of messages.c, 84 bytes)
- *   u8 has_camera, vec3 pos, vec3 look_at, vec3 up, f32 vfov_deg
+ *   u8 has_camera, vec3 pos, vec3 look_at, vec3 up, f32 vfov_deg,
+ *     u8 fov_shorter, u8 left_handed, f32 lens_radius, f32 focal_distance
  *   u32 nmats,    nmats x   { str name, u8 type, vec3 kd, vec3 ks, f32 ns, vec3 kt, f32 ior, vec3 le }
  *   u32 nmeshes,  nmeshes x { str name, u64 nverts, u64 ntris, u8 has_normals,
  *                             nverts x vec3 pos, (has_normals) nverts x vec3 nrm,
@@ -83,6 +84,10 @@ int pf_sceneblob_write(const pf_scene_t *scene, pf_buf_t *out)
     W(s_wr_vec3(out, scene->camera.look_at));
     W(s_wr_vec3(out, scene->camera.up));
     W(pf_wr_f32(out, scene->camera.vfov_deg));
+    W(pf_wr_u8(out, scene->camera.fov_shorter ? 1 : 0));
+    W(pf_wr_u8(out, scene->camera.left_handed ? 1 : 0));
+    W(pf_wr_f32(out, scene->camera.lens_radius));
+    W(pf_wr_f32(out, scene->camera.focal_distance));
 
     W(pf_wr_u32(out, (uint32_t)scene->nmats));
     for (size_t i = 0; i < scene->nmats && rc == 0; i++) {
@@ -254,6 +259,23 @@ static void s_read_camera(s_in_t *in, pf_scene_t *scene)
     scene->camera.look_at = s_vec3(in, "camera", "look_at");
     scene->camera.up = s_vec3(in, "camera", "up");
     scene->camera.vfov_deg = s_f32(in, "camera", "vfov_deg");
+    uint8_t shorter = s_u8(in, "camera", "fov_shorter");
+    if (!in->status && shorter > 1)
+        s_fail(in, PF_EPARSE, "camera fov_shorter is %u, not 0 or 1", (unsigned)shorter);
+    uint8_t left = s_u8(in, "camera", "left_handed");
+    if (!in->status && left > 1)
+        s_fail(in, PF_EPARSE, "camera left_handed is %u, not 0 or 1", (unsigned)left);
+    scene->camera.fov_shorter = shorter;
+    scene->camera.left_handed = left;
+    float lens = s_f32(in, "camera", "lens_radius");
+    float focus = s_f32(in, "camera", "focal_distance");
+    if (!in->status && !(lens >= 0.0f))
+        s_fail(in, PF_EPARSE, "camera lens_radius is %g, not >= 0", (double)lens);
+    if (!in->status && lens > 0.0f && !(focus > 0.0f))
+        s_fail(in, PF_EPARSE, "camera focal_distance is %g, not > 0 with a lens (lens_radius %g)", (double)focus,
+               (double)lens);
+    scene->camera.lens_radius = lens;
+    scene->camera.focal_distance = focus;
 }
 
 static void s_read_materials(s_in_t *in, pf_scene_t *scene)

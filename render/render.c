@@ -50,6 +50,9 @@
  * by what lies between x and the light (nothing: direct; only S: caustic;
  * a non-specular vertex: indirect).
  *
+ * Camera rays come from scene/camera.h: pinhole, or thin lens when the
+ * camera's lens_radius > 0 (the lens sample's numbers: s_camera_sample).
+ *
  * Threads: pf_render_tile is re-entrant; pf_render_image runs tiles over
  * OpenMP, each thread with FTZ/DAZ set. */
 #include "render/render.h"
@@ -530,22 +533,43 @@ static s_pattern s_pattern_make(int spp)
     return pt;
 }
 
+/* Where a camera sample looks from: its film position (fx, fy) and its lens
+ * sample (u1, u2; 0 for a pinhole camera). */
+typedef struct s_film {
+    float fx, fy, u1, u2;
+} s_film;
+
+/* The lens sample takes the last two dimensions of the sample's pixel stream
+ * (2^32 - 2 and 2^32 - 1), which its draws in order (dimensions 1, 2, ...)
+ * never reach: a thin-lens render shares no number with anything else of
+ * the sample, and a pinhole one draws exactly what it drew before the lens
+ * existed. */
+#define S_LENS_DIM 0xfffffffdu
+
 /* Camera sample s of pixel (px, py): starts the sample's pixel stream in st
- * and returns its ray, through film position (*fx, *fy). */
-static pf_ray_t s_camera_sample(s_state *st, const s_pattern *pt, int px, int py, int s, float *fx, float *fy)
+ * and returns its ray, from the lens point and through the film position
+ * that *film receives. */
+static pf_ray_t s_camera_sample(s_state *st, const s_pattern *pt, int px, int py, int s, s_film *film)
 {
     const pf_render_ctx_t *ctx = st->ctx;
     st->pixel = (uint64_t)py * (uint64_t)ctx->camera.width + (uint64_t)px;
     st->sample = (uint32_t)s;
     st->rng = pf_rng_make(ctx->settings.seed, PF_STREAM_PIXEL, st->pixel, (uint32_t)s);
+    film->u1 = film->u2 = 0.0f;
+    if (ctx->camera.lens_radius > 0.0f) {
+        pf_rng_t lens = st->rng;
+        lens.dim = S_LENS_DIM;
+        film->u1 = pf_rng_float(&lens);
+        film->u2 = pf_rng_float(&lens);
+    }
     float jx = s_u(st), jy = s_u(st);
     if (s < pt->strata) {
         jx = ((float)(s % pt->kx) + jx) / (float)pt->kx;
         jy = ((float)(s / pt->kx) + jy) / (float)pt->ky;
     }
-    *fx = (float)px + jx;
-    *fy = (float)py + jy;
-    return pf_camera_ray(&ctx->camera, *fx, *fy);
+    film->fx = (float)px + jx;
+    film->fy = (float)py + jy;
+    return pf_camera_ray_lens(&ctx->camera, film->fx, film->fy, film->u1, film->u2);
 }
 
 /* The end of a camera ray's primary path as s_radiance follows it (mirrors,
@@ -584,14 +608,16 @@ static const pf_material_t *s_primary_hit(const pf_render_ctx_t *c, pf_ray_t ray
  * (fx, fy) ending at p (normal nf): the distance to where the paths one
  * pixel to the right and one down end on the same surface (mirrors and glass
  * spread them far beyond the path's length times the pixel's angle), at
- * least that length times the angle and at most S_FOOT_MAX times it. */
+ * least that length times the angle and at most S_FOOT_MAX times it. The
+ * neighbouring paths leave from the same lens point as the sample's. */
 #define S_FOOT_MAX 32.0f
-static float s_footprint(const pf_render_ctx_t *c, float fx, float fy, pf_vec3 p, pf_vec3 nf, float length)
+static float s_footprint(const pf_render_ctx_t *c, const s_film *film, pf_vec3 p, pf_vec3 nf, float length)
 {
     float base = length * 2.0f * c->camera.tan_half_v / (float)c->camera.height;
     float foot = base;
     for (int k = 0; k < 2; k++) {
-        pf_ray_t ray = pf_camera_ray(&c->camera, fx + (k == 0 ? 1.0f : 0.0f), fy + (k == 1 ? 1.0f : 0.0f));
+        pf_ray_t ray = pf_camera_ray_lens(&c->camera, film->fx + (k == 0 ? 1.0f : 0.0f),
+                                          film->fy + (k == 1 ? 1.0f : 0.0f), film->u1, film->u2);
         pf_hit_t h;
         pf_vec3 n2, ns2;
         float len2;
@@ -630,8 +656,8 @@ static void s_record_pixel(s_state *st, const s_pattern *pt, int px, int py, s_p
     pf_vec3 sums[S_DEFER_MAX];
     int owner[S_DEFER_MAX], nb = 0;
     for (int s = 0; s < pt->spp; s++) {
-        float fx, fy;
-        pf_ray_t ray = s_camera_sample(st, pt, px, py, s, &fx, &fy);
+        s_film film;
+        pf_ray_t ray = s_camera_sample(st, pt, px, py, s, &film);
         pf_hit_t h;
         pf_vec3 nf, ns;
         float length;
@@ -643,7 +669,7 @@ static void s_record_pixel(s_state *st, const s_pattern *pt, int px, int py, s_p
         if (k == S_MAX_CLUSTERS)
             continue; /* gathers for itself in the render pass */
         if (k == rec->nc)
-            rec->c[rec->nc++] = (s_cluster){ h.p, nf, pf_v3s(0.0f), s_footprint(c, fx, fy, h.p, nf, length), 0 };
+            rec->c[rec->nc++] = (s_cluster){ h.p, nf, pf_v3s(0.0f), s_footprint(c, &film, h.p, nf, length), 0 };
         sums[nb] = pf_v3s(0.0f);
         owner[nb] = k;
         s_first_gather_sum(st, &h, nf, ns, &d, &sums[nb++]);
@@ -781,8 +807,8 @@ void pf_tile_plan_render_row(pf_tile_plan_t *p, int row, float *out)
         double acc[3] = { 0, 0, 0 };
         st->caustic_valid = 0;
         for (int s = 0; s < p->pt.spp; s++) {
-            float fx, fy;
-            pf_ray_t ray = s_camera_sample(st, &p->pt, px, py, s, &fx, &fy);
+            s_film film;
+            pf_ray_t ray = s_camera_sample(st, &p->pt, px, py, s, &film);
             pf_vec3 L = s_radiance(st, ray, 0, pf_v3s(1.0f), 1, 1);
             if (!pf_is_finite3(L) || L.x < 0.0f || L.y < 0.0f || L.z < 0.0f) {
                 /* never let a NaN or negative sample reach the image, but say so */

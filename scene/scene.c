@@ -243,6 +243,30 @@ static void s_frame_camera(pf_scene_t *self)
     self->has_camera = 1;
 }
 
+/* The camera's frame and field of view, and its extras: flags 0 or 1, the
+ * lens radius finite and >= 0, the focal distance finite and, with a lens,
+ * > 0 (both within the ray tracer's range). */
+static int s_check_camera(const pf_camera_desc_t *c, const char *file, pf_error_t *err)
+{
+    if (!s_in_range(c->pos) || !pf_is_finite3(c->look_at) || !pf_is_finite3(c->up) || !(c->vfov_deg > 0.0f) ||
+        !(c->vfov_deg < 180.0f) || !(pf_len2(pf_sub(c->look_at, c->pos)) > 0.0f) ||
+        !(pf_len2(pf_cross(pf_sub(c->look_at, c->pos), c->up)) > 0.0f))
+        return pf_error_set(err, PF_EPARSE, file, 0,
+                            "bad camera: position must be within +-1e18 and differ from look-at, up must not be "
+                            "parallel to the view, field of view in (0, 180)");
+    if ((c->fov_shorter != 0 && c->fov_shorter != 1) || (c->left_handed != 0 && c->left_handed != 1))
+        return pf_error_set(err, PF_EPARSE, file, 0, "bad camera: fov_shorter (%d) and left_handed (%d) must be 0 or 1",
+                            c->fov_shorter, c->left_handed);
+    if (!(c->lens_radius >= 0.0f && c->lens_radius <= S_COORD_MAX))
+        return pf_error_set(err, PF_EPARSE, file, 0, "bad camera: lens radius %g must be >= 0 and at most 1e18",
+                            (double)c->lens_radius);
+    if (!(fabsf(c->focal_distance) <= S_COORD_MAX) || (c->lens_radius > 0.0f && !(c->focal_distance > 0.0f)))
+        return pf_error_set(err, PF_EPARSE, file, 0,
+                            "bad camera: focal distance %g must be finite, and > 0 with a lens (radius %g)",
+                            (double)c->focal_distance, (double)c->lens_radius);
+    return PF_OK;
+}
+
 int pf_scene_finalize(pf_scene_t *self, pf_error_t *err)
 {
     const char *file = self->path[0] ? self->path : "scene";
@@ -307,12 +331,5 @@ int pf_scene_finalize(pf_scene_t *self, pf_error_t *err)
                             "the scene has no light: give a material an emission (Ke) or add a point or spot light");
     if (!self->has_camera)
         s_frame_camera(self);
-    const pf_camera_desc_t *c = &self->camera;
-    if (!s_in_range(c->pos) || !pf_is_finite3(c->look_at) || !pf_is_finite3(c->up) || !(c->vfov_deg > 0.0f) ||
-        !(c->vfov_deg < 180.0f) || !(pf_len2(pf_sub(c->look_at, c->pos)) > 0.0f) ||
-        !(pf_len2(pf_cross(pf_sub(c->look_at, c->pos), c->up)) > 0.0f))
-        return pf_error_set(err, PF_EPARSE, file, 0,
-                            "bad camera: position must be within +-1e18 and differ from look-at, up must not be "
-                            "parallel to the view, field of view in (0, 180)");
-    return PF_OK;
+    return s_check_camera(&self->camera, file, err);
 }

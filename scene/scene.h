@@ -61,9 +61,15 @@ typedef struct pf_light {
     float cos_outer;    /* spot: zero outside; smoothstep between */
 } pf_light_t;
 
+/* The camera. All-zero extras give the pinhole camera of the JSON format:
+ * fov along the vertical axis, image right = forward x up. */
 typedef struct pf_camera_desc {
     pf_vec3 pos, look_at, up;
-    float vfov_deg; /* vertical field of view */
+    float vfov_deg;       /* field of view (degrees) along the vertical axis, or the shorter one (fov_shorter) */
+    int fov_shorter;      /* 1: vfov_deg spans the image's shorter axis (pbrt's "fov"), 0: the vertical one */
+    int left_handed;      /* 1: image right = up x forward (pbrt's left-handed camera space), 0: forward x up */
+    float lens_radius;    /* thin lens: radius of the aperture, world units; 0: pinhole */
+    float focal_distance; /* thin lens: distance to the plane in focus (> 0 when lens_radius > 0) */
 } pf_camera_desc_t;
 
 /* The largest settings.gather_filter: a (2n+1)^2 window of pixels. */

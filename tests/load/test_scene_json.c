@@ -7,6 +7,8 @@
  *   material override, an MTL-name remap and a transform.
  * - The three shipped scenes load through pf_scene_load with sane geometry
  *   and a light whose emitting side faces down.
+ * - The camera's thin-lens keys land, default as documented, and bad values
+ *   fail with their line.
  * - Malformed files each fail with the exact "file:line:" of the offending
  *   key or value; files under tests/data/json/bad/ plus inline variants
  *   written to a temporary folder.
@@ -450,6 +452,20 @@ static void test_bad_inline(void)
         { 3, "'intensity' in point light must be >= 0",
           "{ \"lights\": [ { \"type\": \"point\", \"position\": [0, 0, 0],\n \"comment\": \"a string with \\\"escapes\\\" and \\n and ] } {\",\n \"intensity\": -1 } ] }\n" },
         { 2, "'comment' in camera must be a string", "{ \"camera\": { \"position\": [0, 0, 1], \"look_at\": [0, 0, 0],\n \"comment\": 5 } }\n" },
+        { 3, "'lens_radius' in camera must be >= 0 and at most 1e18 (got -0.5)",
+          "{ \"camera\": { \"position\": [0, 0, 1],\n \"look_at\": [0, 0, 0],\n \"lens_radius\": -0.5 } }\n" },
+        { 2, "'lens_radius' in camera must be >= 0 and at most 1e18 (got 1e+30)",
+          "{ \"camera\": { \"position\": [0, 0, 1], \"look_at\": [0, 0, 0],\n \"lens_radius\": 1e30 } }\n" },
+        { 2, "'lens_radius' in camera must be a number, not a string",
+          "{ \"camera\": { \"position\": [0, 0, 1], \"look_at\": [0, 0, 0],\n \"lens_radius\": \"wide\" } }\n" },
+        { 3, "'focal_distance' in camera must be > 0 and at most 1e18 (got 0)",
+          "{ \"camera\": { \"position\": [0, 0, 1], \"look_at\": [0, 0, 0],\n \"lens_radius\": 0.1,\n \"focal_distance\": 0 } }\n" },
+        { 2, "'focal_distance' in camera must be > 0 and at most 1e18 (got -3)",
+          "{ \"camera\": { \"position\": [0, 0, 1], \"look_at\": [0, 0, 0], \"lens_radius\": 0.1,\n \"focal_distance\": -3 } }\n" },
+        { 2, "'focal_distance' in camera must be finite",
+          "{ \"camera\": { \"position\": [0, 0, 1], \"look_at\": [0, 0, 0], \"lens_radius\": 0.1,\n \"focal_distance\": 1e999 } }\n" },
+        { 2, "unknown key 'aperture' in camera",
+          "{ \"camera\": { \"position\": [0, 0, 1], \"look_at\": [0, 0, 0],\n \"aperture\": 2 } }\n" },
     };
     char dir[] = "/tmp/pf_scene_json_XXXXXX";
     if (!mkdtemp(dir)) {
@@ -470,6 +486,58 @@ static void test_bad_inline(void)
     }
     remove(path);
     rmdir(dir);
+}
+
+/* Loads text as a JSON scene file (in a temporary folder, not finalized);
+ * NULL with err filled on failure. */
+static pf_scene_t *s_json_text(const char *text, pf_error_t *err)
+{
+    char dir[] = "/tmp/pf_scene_json_XXXXXX";
+    if (!mkdtemp(dir)) {
+        snprintf(err->msg, sizeof err->msg, "mkdtemp failed");
+        return NULL;
+    }
+    char path[128];
+    snprintf(path, sizeof path, "%s/lens.json", dir);
+    FILE *f = fopen(path, "wb");
+    pf_scene_t *sc = NULL;
+    if (f) {
+        fputs(text, f);
+        fclose(f);
+        sc = s_json(path, err);
+    }
+    remove(path);
+    rmdir(dir);
+    return sc;
+}
+
+/* The camera's thin-lens keys land in pf_camera_desc_t; without them the
+ * camera's extras stay all zero (the pinhole every older scene renders with);
+ * a lens without "focal_distance" focuses at the look-at point. */
+static void test_camera_lens(void)
+{
+    pf_error_t err = { { 0 } };
+    pf_scene_t *sc = s_json_text("{ \"camera\": { \"position\": [0, 1, 6.8], \"look_at\": [0, 1, 0], \"fov\": 19.5,\n"
+                                 "  \"lens_radius\": 0.05, \"focal_distance\": 6.25 } }\n",
+                                 &err);
+    CHECK(sc && sc->camera.lens_radius == 0.05f && sc->camera.focal_distance == 6.25f && sc->camera.vfov_deg == 19.5f,
+          "lens_radius and focal_distance land: %s", sc ? "" : err.msg);
+    pf_scene_destroy(&sc);
+    sc = s_json_text("{ \"camera\": { \"position\": [3, 0, 4], \"look_at\": [0, 0, 0], \"lens_radius\": 0.1 } }\n", &err);
+    CHECK(sc && sc->camera.lens_radius == 0.1f && sc->camera.focal_distance == 5.0f,
+          "a lens without focal_distance focuses at look_at (5): got %g", sc ? (double)sc->camera.focal_distance : -1.0);
+    pf_scene_destroy(&sc);
+    sc = s_json_text("{ \"camera\": { \"position\": [3, 0, 4], \"look_at\": [0, 0, 0] } }\n", &err);
+    CHECK(sc && sc->camera.lens_radius == 0.0f && sc->camera.focal_distance == 0.0f && sc->camera.fov_shorter == 0 &&
+              sc->camera.left_handed == 0,
+          "no lens keys: a pinhole with all-zero extras");
+    pf_scene_destroy(&sc);
+    sc = s_json_text("{ \"camera\": { \"position\": [3, 0, 4], \"look_at\": [0, 0, 0], \"lens_radius\": 0,"
+                     " \"focal_distance\": 2 } }\n",
+                     &err);
+    CHECK(sc && sc->camera.lens_radius == 0.0f && sc->camera.focal_distance == 2.0f,
+          "lens_radius 0 with a focal distance: kept, a pinhole");
+    pf_scene_destroy(&sc);
 }
 
 /* The "materials" map must name MTL materials the model uses; both models.json
@@ -581,6 +649,7 @@ int main(void)
     test_prims();
     test_bad_files();
     test_bad_inline();
+    test_camera_lens();
     test_models();
     test_remap_errors();
     test_corruptions();

@@ -1,7 +1,8 @@
 /* test_blobs.c: the scene blob and the photon-map blob (ctest `blobs`).
  *
  * Scene blob: a small scene built in code (materials of every kind, a mesh
- * with normals and one without, a sphere, a point and a spot light, a camera)
+ * with normals and one without, a sphere, a point and a spot light, a
+ * left-handed thin-lens camera whose fov spans the shorter axis)
  * and the shipped cornell-spheres scene round-trip into scenes equal in every
  * array, and re-serialize to the same bytes; every truncation (all lengths
  * for the small scene, a sample for cornell-spheres) fails cleanly; huge
@@ -137,7 +138,9 @@ static pf_scene_t *s_tiny_scene(void)
     l = (pf_light_t){ .type = PF_LIGHT_SPOT, .pos = pf_v3(1, 1.5f, 1), .intensity = pf_v3s(10),
                       .dir = pf_norm(pf_v3(-1, -1, -1)), .cos_inner = 0.95f, .cos_outer = 0.9f };
     pf_scene_add_light(s, &l);
-    s->camera = (pf_camera_desc_t){ pf_v3(0, 1, 4), pf_v3(0, 0.5f, 0), pf_v3(0, 1, 0), 45.0f };
+    s->camera = (pf_camera_desc_t){ .pos = pf_v3(0, 1, 4), .look_at = pf_v3(0, 0.5f, 0), .up = pf_v3(0, 1, 0),
+                                    .vfov_deg = 45.0f, .fov_shorter = 1, .left_handed = 1, .lens_radius = 0.05f,
+                                    .focal_distance = 4.25f };
     s->has_camera = 1;
     pf_error_t err;
     if (pf_scene_finalize(s, &err) != 0) {
@@ -240,7 +243,7 @@ static int s_scene_truncation_fails(const uint8_t *data, size_t len)
 /* Offsets of the tiny scene's fields, found by walking the documented layout
  * independently of the reader. */
 typedef struct s_offsets {
-    size_t reserved, has_camera, nmats, mat1_type, mat0_name, nmeshes;
+    size_t reserved, has_camera, fov_shorter, left_handed, lens_radius, focal_distance, nmats, mat1_type, mat0_name, nmeshes;
     size_t mesh0_nverts, mesh0_ntris, mesh0_has_nrm, mesh0_pos, mesh0_idx, mesh0_mat;
     size_t nspheres, sphere0_radius, sphere0_mat, nlights, light0_type, end;
 } s_offsets_t;
@@ -257,6 +260,11 @@ static s_offsets_t s_walk(const uint8_t *d)
     at += 84;                       /* settings */
     o.has_camera = at;
     at += 1 + 40;
+    o.fov_shorter = at;
+    o.left_handed = at + 1;
+    o.lens_radius = at + 2;
+    o.focal_distance = at + 6;
+    at += 2 + 8;
     o.nmats = at;
     uint32_t nm = d[at] | (uint32_t)d[at + 1] << 8;
     at += 4;
@@ -346,9 +354,19 @@ static void test_scene_blob(void)
     const s_spatch_t patches[] = {
         { 0, 1, 'X', 0, "bad magic", "magic" },
         { 4, 2, 9, 0, "format version 9", "version" },
+        { 4, 2, 2, 0, "format version 2, this build reads 3", "version 2 (before the lens)" },
         { o.reserved, 2, 1, 0, "reserved", "reserved field" },
         { o.has_camera, 1, 2, 0, "has_camera", "has_camera 2" },
         { o.has_camera + 1, -4, 0, NAN, "camera pos is not a finite number", "camera NaN" },
+        { o.fov_shorter, 1, 2, 0, "camera fov_shorter is 2, not 0 or 1", "fov_shorter 2" },
+        { o.left_handed, 1, 255, 0, "camera left_handed is 255, not 0 or 1", "left_handed 255" },
+        { o.lens_radius, -4, 0, -0.5f, "camera lens_radius is -0.5, not >= 0", "negative lens radius" },
+        { o.lens_radius, -4, 0, NAN, "camera lens_radius is not a finite number", "NaN lens radius" },
+        { o.lens_radius, -4, 0, INFINITY, "camera lens_radius is not a finite number", "infinite lens radius" },
+        { o.focal_distance, -4, 0, 0.0f, "camera focal_distance is 0, not > 0 with a lens", "focal distance 0" },
+        { o.focal_distance, -4, 0, -2.0f, "camera focal_distance is -2, not > 0 with a lens", "negative focus" },
+        { o.focal_distance, -4, 0, INFINITY, "camera focal_distance is not a finite number", "infinite focus" },
+        { o.lens_radius, -4, 0, 2e18f, "lens radius 2e+18 must be >= 0 and at most 1e18", "lens 2e18 (finalize)" },
         { o.nmats, 4, 0xffffffffu, 0, "materials need at least", "material count 2^32-1" },
         { o.nmats, 4, 5, 0, "", "material count one too many" },
         { o.mat0_name, 2, 64, 0, "name is 64 bytes", "material name too long" },
@@ -392,6 +410,9 @@ static void test_scene_blob(void)
     pf_sceneblob_write(tiny, &b);
     s = pf_sceneblob_read(b.data, b.len, &err);
     CHECK(s && s->has_camera == 1, "has_camera 0 is framed on read");
+    CHECK(s && s->camera.lens_radius == 0.0f && s->camera.focal_distance == 0.0f && !s->camera.fov_shorter &&
+              !s->camera.left_handed,
+          "the framed camera is a pinhole (lens 0, focal distance 0 read back)");
     pf_scene_destroy(&s);
     pf_buf_free(&b);
     pf_scene_destroy(&tiny);

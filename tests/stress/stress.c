@@ -111,7 +111,7 @@ void stress_point_light(pf_scene_t *scene, pf_vec3 pos, float intensity)
 
 void stress_camera(pf_scene_t *scene, pf_vec3 pos, pf_vec3 at, pf_vec3 up, float fov)
 {
-    scene->camera = (pf_camera_desc_t){ pos, at, up, fov };
+    scene->camera = (pf_camera_desc_t){ .pos = pos, .look_at = at, .up = up, .vfov_deg = fov };
     scene->has_camera = 1;
 }
 

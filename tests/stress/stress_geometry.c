@@ -242,7 +242,8 @@ static void s_thin_wall(float thickness)
         if (maxv != 0.0)
             s_leak_terms(what, &job);
         /* The other room's view, for scale. */
-        scene->camera = (pf_camera_desc_t){ pf_v3(-0.9f, 0.5f, 0.5f), pf_v3(0, 0.45f, 0.5f), pf_v3(0, 1, 0), 100.0f };
+        scene->camera = (pf_camera_desc_t){ .pos = pf_v3(-0.9f, 0.5f, 0.5f), .look_at = pf_v3(0, 0.45f, 0.5f),
+                                            .up = pf_v3(0, 1, 0), .vfov_deg = 100.0f };
         stress_job_render(&job, what, PF_TERM_ALL, &lit);
         double lit_mean = stress_mean(&lit);
         pf_image_free(&lit);
