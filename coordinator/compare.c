@@ -1,6 +1,6 @@
 /* compare.c: the `photonfarm compare IMAGE REFERENCE [--json]` subcommand.
- * It reads two PFMs, measures the image against the reference with
- * pf_metrics_compare (downsampling the larger by an integer factor when the
+ * It reads two images (PFM, or OpenEXR by the .exr extension), measures the
+ * image against the reference with pf_metrics_compare (downsampling the larger by an integer factor when the
  * sizes differ) and prints the result as a small table or, for scripts, as
  * one line of JSON. The exit code tells scripts what went wrong without
  * parsing stderr. Runs on the main thread of a short-lived process; owns only
@@ -26,7 +26,7 @@ static void s_usage(FILE *out)
 {
     fputs("usage: photonfarm compare IMAGE REFERENCE [--json]\n"
           "\n"
-          "Measures IMAGE against REFERENCE (both PFM). When the sizes differ by the\n"
+          "Measures IMAGE against REFERENCE (PFM, or OpenEXR for .exr). When the sizes differ by the\n"
           "same integer factor in x and y, the larger is box-downsampled first.\n"
           "\n"
           "  relMSE     mean over pixels and channels of (a-b)^2 / (b^2 + 0.01)\n"
@@ -100,9 +100,9 @@ int pf_cli_compare(int argc, char **argv)
 
     pf_image_t img = { 0, 0, NULL }, ref = { 0, 0, NULL };
     pf_error_t err;
-    int st = pf_image_read_pfm(&img, paths[0], &err);
+    int st = pf_image_read_hdr(&img, paths[0], &err);
     if (st == PF_OK)
-        st = pf_image_read_pfm(&ref, paths[1], &err);
+        st = pf_image_read_hdr(&ref, paths[1], &err);
     if (st < 0) {
         /* The reader's message already begins with the file name. */
         fprintf(stderr, "photonfarm compare: %s\n", err.msg);

@@ -454,7 +454,7 @@ if grep -qE 'include\(.*cmake/' CMakeLists.txt && ! has "$CF" '^COPY cmake/ cmak
 fi
 check "the build stage copies every folder the build needs${missing:+ (missing:$missing)}" eq "$missing" ""
 check "the image runs as a non-root user" has "$CF" '^USER [1-9][0-9]*'
-runtime=$(sed -n '/^FROM .*bookworm-slim/,$p' "$CF" | grep -oE '\b(lib[a-z0-9.+-]+[0-9])\b' | sort -u | tr '\n' ' ')
+runtime=$(sed -n '/^FROM .*bookworm-slim/,$p' "$CF" | grep -oE '\b(lib[a-z0-9.+-]+[0-9][a-z]?)\b' | sort -u | tr '\n' ' ')
 if have apt-cache && apt-cache show libzmq3-dev >/dev/null 2>&1; then
     read -r -a devs < <(sed -n 's/^packages=(\(.*\))/\1/p' deploy/install-deps.sh)
     for dev in "${devs[@]}"; do

@@ -57,8 +57,8 @@ TOOLS = {"bench": ["coordinator", "worker"], "fuzz": ["coordinator", "worker"]}
 # CMakeLists.txt files).
 EXTERNAL = {
     "base": {"m"},
-    "image": {"PkgConfig::PNG"},
-    "load": {"PkgConfig::CJSON"},
+    "image": {"PkgConfig::PNG", "tinyexr::tinyexr"},
+    "load": {"PkgConfig::CJSON", "PkgConfig::ZLIB"},
     "accel": {"embree"},
     "photon": {"OpenMP::OpenMP_C"},
     "render": {"OpenMP::OpenMP_C"},
