@@ -31,17 +31,18 @@ static void s_usage(FILE *f)
             "photonfarm %s (%s): a distributed photon-mapping renderer\n"
             "\n"
             "usage:\n"
-            "  photonfarm render SCENE [-o out.png] [--hdr out.pfm] [options]\n"
+            "  photonfarm render SCENE [-o out.png] [--hdr out.pfm|out.exr] [options]\n"
             "  photonfarm compare IMAGE.pfm REFERENCE.pfm [--json]\n"
             "  photonfarm keygen NAME        (writes NAME.key, secret, and NAME.pub for CURVE)\n"
             "  photonfarm --help | --version\n"
             "\n"
             "SCENE is a JSON scene (docs/scene-format.md), an .obj model (materials from its\n"
-            ".mtl, lights from Ke, a camera that frames it) or a .ply mesh.\n"
+            ".mtl, lights from Ke, a camera that frames it), a .ply or .ply.gz mesh, or a\n"
+            "pbrt-v4 scene (.pbrt; what is read and how: docs/pbrt.md).\n"
             "\n"
             "render options (defaults from the scene's \"render\" block, else shown here):\n"
             "  -o, --output FILE        PNG output, 8-bit sRGB (default: <scene name>.png)\n"
-            "      --hdr FILE           also write linear float PFM\n"
+            "      --hdr FILE           also write linear float: OpenEXR if FILE ends in .exr, else PFM\n"
             "      --size WxH           image size (512x512)\n"
             "      --spp N              camera samples per pixel, stratified when a square (36)\n"
             "      --photons N          global photons emitted (400000)\n"
@@ -64,6 +65,8 @@ static void s_usage(FILE *f)
             "                           machine (or farm); given --spp/--photons are kept\n"
             "      --terms LIST         render only these terms: emitted,direct,caustic,indirect (all);\n"
             "                           photonmap shows the global map's radiance (debugging)\n"
+            "      --strict             a .pbrt scene that asks for anything approximated or ignored\n"
+            "                           is an error (exit 3) instead of a warning\n"
             "\n"
             "render farm (docs/cluster.md):\n"
             "      --workers N          start N local worker processes (0: render in this process)\n"
@@ -191,7 +194,7 @@ static void s_default_output(const char *scene, char *out, size_t n)
 enum {
     OPT_HDR = 256, OPT_SIZE, OPT_SPP, OPT_PHOTONS, OPT_CPHOTONS, OPT_GATHER, OPT_GFILTER, OPT_LSAMPLES, OPT_GK, OPT_CK, OPT_CR,
     OPT_DEPTH, OPT_THREADS, OPT_SEED, OPT_EXPOSURE, OPT_TERMS, OPT_WORKERS, OPT_BIND, OPT_MINW, OPT_CSECRET,
-    OPT_CALLOW, OPT_TILE, OPT_HB, OPT_WATCHDOG, OPT_MAXWAIT, OPT_WEXE, OPT_TLIMIT, OPT_QUALITY,
+    OPT_CALLOW, OPT_TILE, OPT_HB, OPT_WATCHDOG, OPT_MAXWAIT, OPT_WEXE, OPT_TLIMIT, OPT_QUALITY, OPT_STRICT,
 };
 
 static volatile int s_interrupted;
@@ -218,7 +221,8 @@ static const struct option s_render_opts[] = {
     { "tile", required_argument, 0, OPT_TILE },      { "heartbeat-ms", required_argument, 0, OPT_HB },
     { "watchdog", required_argument, 0, OPT_WATCHDOG }, { "max-wait", required_argument, 0, OPT_MAXWAIT },
     { "worker-exe", required_argument, 0, OPT_WEXE }, { "time-limit", required_argument, 0, OPT_TLIMIT },
-    { "quality", required_argument, 0, OPT_QUALITY }, { 0, 0, 0, 0 },
+    { "quality", required_argument, 0, OPT_QUALITY }, { "strict", no_argument, 0, OPT_STRICT },
+    { 0, 0, 0, 0 },
 };
 
 /* Command-line settings are applied over the scene's after it loads; has_x
@@ -241,6 +245,7 @@ typedef struct s_render_args {
     int workers;
     float time_limit;
     const pf_quality_t *quality;
+    int strict; /* --strict: loader warnings are errors */
 } s_render_args;
 
 /* The long name of the render option whose getopt value is c, for an error
@@ -309,6 +314,7 @@ static int s_parse_render_args(int argc, char **argv, s_render_args *a)
         case OPT_WEXE: farm->worker_exe = optarg; break;
         case OPT_TLIMIT: bad = s_parse_float(optarg, &a->time_limit) || a->time_limit <= 0 || a->time_limit > 1e7; break;
         case OPT_QUALITY: bad = (a->quality = s_find_quality(optarg)) == NULL; break;
+        case OPT_STRICT: a->strict = 1; break;
         case 'q': pf_log_set_level(PF_LOG_ERROR); break;
         case 'v': pf_log_set_level(PF_LOG_DEBUG); break;
         case 'h': s_usage(stdout); return 0;
@@ -458,7 +464,7 @@ static int s_render_here(pf_scene_t **scene_p, const s_render_args *a, pf_budget
     return 0;
 }
 
-/* Warns about bad samples, writes the PNG (and the PFM with --hdr), frees
+/* Warns about bad samples, writes the PNG (and the PFM or EXR with --hdr), frees
  * *img and logs the times. Returns the command's exit code. */
 static int s_write_output(const s_render_args *a, const pf_settings_t *s, pf_image_t *img,
                           const pf_job_summary_t *sum, double t0, pf_error_t *err)
@@ -472,7 +478,7 @@ static int s_write_output(const s_render_args *a, const pf_settings_t *s, pf_ima
                 sum->dropped_samples);
     int rc = pf_image_write_png(img, out, s->exposure, err);
     if (rc == PF_OK && hdr)
-        rc = pf_image_write_pfm(img, hdr, err);
+        rc = pf_image_write_hdr(img, hdr, err);
     pf_image_free(img);
     if (rc != PF_OK) {
         pf_error("%s", err->msg);
@@ -496,7 +502,7 @@ static int s_cmd_render(int argc, char **argv)
 
     double t0 = pf_now();
     pf_error_t err = { { 0 } };
-    pf_scene_t *scene = pf_scene_load(a.path, &err);
+    pf_scene_t *scene = pf_scene_load_opts(a.path, &(pf_load_opts_t){ .strict = a.strict }, &err);
     if (!scene) {
         pf_error("%s", err.msg);
         return EXIT_INPUT;

@@ -6,7 +6,7 @@
 # build-fuzz/artifacts/<target>/.
 #
 # Usage: bash deploy/fuzz.sh SECONDS [--jobs N] [TARGET...]
-#   TARGET   json obj mtl ply msg sceneblob mapfile pfm (default: all)
+#   TARGET   json obj mtl ply pbrt msg sceneblob mapfile pfm (default: all)
 #   --jobs N run N targets at once (default 1; on 2 cores use at most 2)
 #
 # Build: build-fuzz/ with clang, -DPF_FUZZ=ON -DPF_SANITIZE=ON (ASan, UBSan,
@@ -16,7 +16,7 @@
 # Logs: build-fuzz/logs/<target>.log. Summary: build-fuzz/summary.md.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
-all_targets=(json obj mtl ply msg sceneblob mapfile pfm)
+all_targets=(json obj mtl ply pbrt msg sceneblob mapfile pfm)
 
 usage() {
   echo "usage: bash deploy/fuzz.sh SECONDS [--jobs N] [TARGET...]  (targets: ${all_targets[*]})" >&2

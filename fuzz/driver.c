@@ -33,6 +33,7 @@ int pf_fuzz_json(const uint8_t *data, size_t size);
 int pf_fuzz_obj(const uint8_t *data, size_t size);
 int pf_fuzz_mtl(const uint8_t *data, size_t size);
 int pf_fuzz_ply(const uint8_t *data, size_t size);
+int pf_fuzz_pbrt(const uint8_t *data, size_t size);
 int pf_fuzz_msg(const uint8_t *data, size_t size);
 int pf_fuzz_sceneblob(const uint8_t *data, size_t size);
 int pf_fuzz_mapfile(const uint8_t *data, size_t size);
@@ -44,6 +45,7 @@ static const struct {
 } s_targets[] = {
     { "json", pf_fuzz_json },       { "obj", pf_fuzz_obj },
     { "mtl", pf_fuzz_mtl },         { "ply", pf_fuzz_ply },
+    { "pbrt", pf_fuzz_pbrt },
     { "msg", pf_fuzz_msg },         { "sceneblob", pf_fuzz_sceneblob },
     { "mapfile", pf_fuzz_mapfile }, { "pfm", pf_fuzz_pfm },
 };

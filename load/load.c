@@ -12,7 +12,16 @@ static const char *s_ext(const char *path)
     return (dot && (!slash || dot > slash)) ? dot + 1 : "";
 }
 
-pf_scene_t *pf_scene_load(const char *path, pf_error_t *err)
+pf_scene_t *pf_scene_load(const char *path, pf_error_t *err) { return pf_scene_load_opts(path, NULL, err); }
+
+/* Whether path ends in ".ply.gz". */
+static int s_is_ply_gz(const char *path)
+{
+    size_t n = strlen(path);
+    return n > 7 && strcasecmp(path + n - 7, ".ply.gz") == 0;
+}
+
+pf_scene_t *pf_scene_load_opts(const char *path, const pf_load_opts_t *opts, pf_error_t *err)
 {
     pf_scene_t *scene = pf_scene_create();
     if (!scene) {
@@ -26,7 +35,9 @@ pf_scene_t *pf_scene_load(const char *path, pf_error_t *err)
         rc = pf_scene_json_load(scene, path, err);
     } else if (strcasecmp(ext, "obj") == 0) {
         rc = pf_obj_load(scene, path, NULL, -1, err);
-    } else if (strcasecmp(ext, "ply") == 0) {
+    } else if (strcasecmp(ext, "pbrt") == 0) {
+        rc = pf_pbrt_load(scene, path, opts, err);
+    } else if (strcasecmp(ext, "ply") == 0 || s_is_ply_gz(path)) {
         pf_material_t m = pf_material_default("default");
         int mi = pf_scene_add_material(scene, &m);
         rc = mi < 0 ? mi : pf_ply_load(scene, path, NULL, (uint32_t)mi, err);
@@ -41,7 +52,7 @@ pf_scene_t *pf_scene_load(const char *path, pf_error_t *err)
             rc = pf_scene_add_light(scene, &l);
         }
     } else {
-        rc = pf_error_set(err, PF_EUNSUPPORTED, path, 0, "unknown scene type '.%s' (expected .json, .obj or .ply)", ext);
+        rc = pf_error_set(err, PF_EUNSUPPORTED, path, 0, "unknown scene type '.%s' (expected .json, .obj, .ply, .ply.gz or .pbrt)", ext);
     }
     if (rc == PF_OK)
         rc = pf_scene_finalize(scene, err);

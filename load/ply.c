@@ -18,13 +18,20 @@
  * "file: byte offset N" in binary bodies.
  *
  * A mirroring transform (det < 0) reverses the winding and negates the
- * transformed normals, as in obj.c. */
+ * transformed normals, as in obj.c.
+ *
+ * A file whose name ends in ".gz" is inflated through zlib into memory
+ * first (at most S_GZ_MAX bytes) and read from there like any other: the
+ * size check above then holds against the inflated size, and errors name
+ * the .gz file with the line or byte offset of the inflated text. */
 #include "base/fastfloat.h"
 #include "base/reserve.h"
 #include "load/load.h"
 
 #include <errno.h>
 #include <inttypes.h>
+#include <strings.h>
+#include <zlib.h>
 #include <math.h>
 #include <stdarg.h>
 #include <stdint.h>
@@ -550,84 +557,185 @@ static int s_read_body(s_ply_t *p, s_build_t *b, const s_elem_t *ve, const s_ele
     return PF_OK;
 }
 
+/* Finds the vertex and face elements (*ve, *fe) and the roles their
+ * properties play, and checks the counts of every element against the bytes
+ * after the header. */
+static int s_find_elements(s_ply_t *p, const s_elem_t **vep, const s_elem_t **fep, int roles[S_INDICES + 1])
+{
+    const s_elem_t *ve = NULL, *fe = NULL;
+    uint64_t need = 0, body = s_left(p);
+    for (size_t ei = 0; ei < p->nelems; ei++) {
+        const s_elem_t *e = &p->elems[ei];
+        if (!ve && strcmp(e->name, "vertex") == 0) {
+            ve = e;
+            for (size_t k = 0; k < e->n; k++)
+                roles[p->props[e->first + k].role] = 1;
+        }
+        if (!fe && strcmp(e->name, "face") == 0) {
+            fe = e;
+            for (size_t k = 0; k < e->n; k++)
+                roles[p->props[e->first + k].role] = 1;
+        }
+        if (e->count > 0 && e->n == 0) {
+            p->line = e->line;
+            return s_header_err(p, "element '%s' has no properties", e->name);
+        }
+        uint64_t per = 0;
+        for (size_t k = 0; k < e->n; k++) {
+            const s_prop_t *q = &p->props[e->first + k];
+            per += p->format == S_ASCII ? 2 : s_size[q->list ? q->count_type : q->type];
+        }
+        uint64_t bytes;
+        if (__builtin_mul_overflow(e->count, per, &bytes) || __builtin_add_overflow(need, bytes, &need) ||
+            need > body + (p->format == S_ASCII)) {
+            p->line = e->line;
+            return s_header_err(p,
+                                "the header promises %" PRIu64 " '%s' elements, more than the %" PRIu64
+                                " bytes after the header can hold",
+                                e->count, e->name, body);
+        }
+    }
+    if (!ve || !roles[S_X] || !roles[S_Y] || !roles[S_Z])
+        return pf_error_set(p->err, PF_EPARSE, p->path, ve ? ve->line : p->line,
+                            "no vertex element with x, y and z properties");
+    if (!fe || !roles[S_INDICES])
+        return pf_error_set(p->err, PF_EUNSUPPORTED, p->path, fe ? fe->line : p->line,
+                            "no face element with a vertex_indices list (point clouds are not supported)");
+    if (ve->count > UINT32_MAX)
+        return pf_error_set(p->err, PF_EUNSUPPORTED, p->path, ve->line, "more than 2^32 - 1 vertices");
+    *vep = ve;
+    *fep = fe;
+    return PF_OK;
+}
+
+/* Whether path names a gzip-compressed file (".gz"). */
+static int s_is_gz(const char *path)
+{
+    size_t n = strlen(path);
+    return n > 3 && strcasecmp(path + n - 3, ".gz") == 0;
+}
+
+/* Inflates the gzip file at path into a new buffer: *out (owned by the
+ * caller, at least one byte), *len bytes. At most S_GZ_MAX bytes, so that a
+ * small file cannot expand into all of memory. */
+#define S_GZ_MAX ((size_t)1 << 32)
+static int s_inflate(const char *path, unsigned char **out, size_t *len, pf_error_t *err)
+{
+    gzFile gz = gzopen(path, "rb");
+    if (!gz)
+        return pf_error_set(err, errno == ENOMEM ? PF_ENOMEM : PF_EIO, path, 0, "cannot open: %s",
+                            errno ? strerror(errno) : "out of memory");
+    unsigned char *buf = NULL;
+    size_t n = 0, cap = 0;
+    int rc = PF_OK;
+    for (;;) {
+        if (n == cap) {
+            if (cap >= S_GZ_MAX) {
+                rc = pf_error_set(err, PF_ERANGE, path, 0, "inflates to more than %zu bytes", S_GZ_MAX);
+                break;
+            }
+            size_t ncap = cap ? 2 * cap : (size_t)1 << 16;
+            unsigned char *nb = realloc(buf, ncap);
+            if (!nb) {
+                rc = pf_error_set(err, PF_ENOMEM, path, 0, "out of memory");
+                break;
+            }
+            buf = nb;
+            cap = ncap;
+        }
+        size_t want = cap - n > (1u << 30) ? (1u << 30) : cap - n;
+        int k = gzread(gz, buf + n, (unsigned)want);
+        if (k < 0) {
+            int zerr = 0;
+            const char *msg = gzerror(gz, &zerr);
+            rc = pf_error_set(err, zerr == Z_MEM_ERROR ? PF_ENOMEM : PF_EPARSE, path, 0, "not a valid gzip file: %s",
+                              zerr == Z_ERRNO ? strerror(errno) : msg);
+            break;
+        }
+        if (k == 0)
+            break;
+        n += (size_t)k;
+    }
+    gzclose(gz);
+    if (rc) {
+        free(buf);
+        return rc;
+    }
+    *out = buf;
+    *len = n;
+    return PF_OK;
+}
+
+/* Opens the file for reading and fills p->f and p->fsize; a .gz file is
+ * inflated into *inflated (freed by the caller after fclose) and read from
+ * memory. */
+static int s_open(s_ply_t *p, unsigned char **inflated)
+{
+    if (s_is_gz(p->path)) {
+        size_t n = 0;
+        int rc = s_inflate(p->path, inflated, &n, p->err);
+        if (rc)
+            return rc;
+        if (n == 0)
+            return pf_error_set(p->err, PF_EPARSE, p->path, 1, "not a PLY file (it inflates to nothing)");
+        p->f = fmemopen(*inflated, n, "rb");
+        if (!p->f)
+            return pf_error_set(p->err, PF_ENOMEM, p->path, 0, "cannot read the inflated file: %s", strerror(errno));
+        p->fsize = n;
+        return PF_OK;
+    }
+    p->f = fopen(p->path, "rb");
+    if (!p->f)
+        return pf_error_set(p->err, PF_EIO, p->path, 0, "cannot open: %s", strerror(errno));
+    struct stat st;
+    if (fstat(fileno(p->f), &st) != 0 || st.st_size < 0) {
+        int rc = pf_error_set(p->err, PF_EIO, p->path, 0, "cannot stat: %s", strerror(errno));
+        fclose(p->f);
+        p->f = NULL;
+        return rc;
+    }
+    p->fsize = (uint64_t)st.st_size;
+    return PF_OK;
+}
+
 int pf_ply_load(pf_scene_t *scene, const char *path, const pf_xform_t *xf, uint32_t mat, pf_error_t *err)
 {
     PF_CHECK(scene && path);
     if (mat >= scene->nmats)
         return pf_error_set(err, PF_EINVAL, path, 0, "material %u is not a scene material (%zu defined)", mat,
                             scene->nmats);
+    pf_mesh_t m = { 0 };
+    int rc = pf_ply_read(path, xf, mat, &m, err);
+    if (rc == PF_OK && m.ntris > 0 && pf_scene_add_mesh(scene, &m))
+        rc = pf_error_set(err, PF_ENOMEM, path, 0, "out of memory");
+    pf_mesh_free(&m);
+    return rc;
+}
+
+int pf_ply_read(const char *path, const pf_xform_t *xf, uint32_t mat, pf_mesh_t *out, pf_error_t *err)
+{
+    PF_CHECK(path && out);
+    memset(out, 0, sizeof *out);
     s_ply_t p = { .path = path, .err = err };
     s_build_t b = { 0 };
     pf_mesh_t m = { 0 };
-    int rc = PF_OK;
-    p.f = fopen(path, "rb");
-    if (!p.f)
-        return pf_error_set(err, PF_EIO, path, 0, "cannot open: %s", strerror(errno));
-    struct stat st;
+    unsigned char *inflated = NULL;
+    int rc = s_open(&p, &inflated);
+    if (rc)
+        return rc;
     p.buf = malloc(S_BUF);
     if (!p.buf) {
         rc = pf_error_set(err, PF_ENOMEM, path, 0, "out of memory");
         goto done;
     }
-    if (fstat(fileno(p.f), &st) != 0 || st.st_size < 0) {
-        rc = pf_error_set(err, PF_EIO, path, 0, "cannot stat: %s", strerror(errno));
-        goto done;
-    }
-    p.fsize = (uint64_t)st.st_size;
     if ((rc = s_parse_header(&p)))
         goto done;
 
     /* Find the vertex and face elements and check the counts against the size. */
     const s_elem_t *ve = NULL, *fe = NULL;
     int roles[S_INDICES + 1] = { 0 };
-    uint64_t need = 0, body = s_left(&p);
-    for (size_t ei = 0; ei < p.nelems; ei++) {
-        const s_elem_t *e = &p.elems[ei];
-        if (!ve && strcmp(e->name, "vertex") == 0) {
-            ve = e;
-            for (size_t k = 0; k < e->n; k++)
-                roles[p.props[e->first + k].role] = 1;
-        }
-        if (!fe && strcmp(e->name, "face") == 0) {
-            fe = e;
-            for (size_t k = 0; k < e->n; k++)
-                roles[p.props[e->first + k].role] = 1;
-        }
-        if (e->count > 0 && e->n == 0) {
-            p.line = e->line;
-            rc = s_header_err(&p, "element '%s' has no properties", e->name);
-            goto done;
-        }
-        uint64_t per = 0;
-        for (size_t k = 0; k < e->n; k++) {
-            const s_prop_t *q = &p.props[e->first + k];
-            per += p.format == S_ASCII ? 2 : s_size[q->list ? q->count_type : q->type];
-        }
-        uint64_t bytes;
-        if (__builtin_mul_overflow(e->count, per, &bytes) || __builtin_add_overflow(need, bytes, &need) ||
-            need > body + (p.format == S_ASCII)) {
-            p.line = e->line;
-            rc = s_header_err(&p,
-                              "the header promises %" PRIu64 " '%s' elements, more than the %" PRIu64
-                              " bytes after the header can hold",
-                              e->count, e->name, body);
-            goto done;
-        }
-    }
-    if (!ve || !roles[S_X] || !roles[S_Y] || !roles[S_Z]) {
-        rc = pf_error_set(err, PF_EPARSE, path, ve ? ve->line : p.line,
-                          "no vertex element with x, y and z properties");
+    if ((rc = s_find_elements(&p, &ve, &fe, roles)))
         goto done;
-    }
-    if (!fe || !roles[S_INDICES]) {
-        rc = pf_error_set(err, PF_EUNSUPPORTED, path, fe ? fe->line : p.line,
-                          "no face element with a vertex_indices list (point clouds are not supported)");
-        goto done;
-    }
-    if (ve->count > UINT32_MAX) {
-        rc = pf_error_set(err, PF_EUNSUPPORTED, path, ve->line, "more than 2^32 - 1 vertices");
-        goto done;
-    }
     int normals = roles[S_NX] && roles[S_NY] && roles[S_NZ];
     if (!normals && (roles[S_NX] || roles[S_NY] || roles[S_NZ]))
         pf_warn("%s:%d: only some of nx, ny, nz are given; normals ignored", path, ve->line);
@@ -651,8 +759,10 @@ int pf_ply_load(pf_scene_t *scene, const char *path, const pf_xform_t *xf, uint3
 
     const char *slash = strrchr(path, '/');
     const char *file = slash ? slash + 1 : path;
-    const char *dot = strrchr(file, '.');
-    snprintf(m.name, sizeof m.name, "%.*s", (int)(dot && dot != file ? dot - file : (ptrdiff_t)strlen(file)), file);
+    char stem[256];
+    snprintf(stem, sizeof stem, "%.*s", (int)(strlen(file) - (s_is_gz(file) ? 3 : 0)), file);
+    const char *dot = strrchr(stem, '.');
+    snprintf(m.name, sizeof m.name, "%.*s", (int)(dot && dot != stem ? dot - stem : (ptrdiff_t)strlen(stem)), stem);
     m.nverts = b.nverts;
     m.ntris = b.ntris;
     m.pos = b.pos;
@@ -675,8 +785,8 @@ int pf_ply_load(pf_scene_t *scene, const char *path, const pf_xform_t *xf, uint3
                 m.nrm[v] = b.flip ? pf_neg(pf_xform_normal(xf, m.nrm[v])) : pf_xform_normal(xf, m.nrm[v]);
         }
     }
-    if (pf_scene_add_mesh(scene, &m))
-        rc = pf_error_set(err, PF_ENOMEM, path, 0, "out of memory");
+    *out = m;
+    memset(&m, 0, sizeof m);
 done:
     pf_mesh_free(&m);
     free(b.pos);
@@ -686,5 +796,6 @@ done:
     free(p.props);
     free(p.buf);
     fclose(p.f);
+    free(inflated);
     return rc;
 }

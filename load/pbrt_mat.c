@@ -1,0 +1,593 @@
+/* pbrt_mat.c: the pbrt-v4 reader's materials, textures and lights, mapped
+ * onto the scene model (scene/scene.h). It owns nothing: the records live in
+ * the load's pf_pbrt_t. Single-threaded.
+ *
+ * Materials (each distinct (material, area light) pair becomes one scene
+ * material, named after the pbrt material):
+ *   diffuse             DIFFUSE kd = reflectance
+ *   coateddiffuse       DIFFUSE: the coat's normal-incidence Fresnel F0 as a
+ *                       Phong lobe (ks = F0, ns = 2 / alpha^2 - 2, at most
+ *                       10000), the base seen through the coat as
+ *                       kd = (1 - F0)(1 - Fdr) R / (1 - Fdr R), Fdr the
+ *                       coat's internal diffuse reflectance (Egan and
+ *                       Hilgeman's fit); warned as approximated
+ *   conductor           MIRROR ks = ((n-1)^2 + k^2) / ((n+1)^2 + k^2) per
+ *                       channel, or "reflectance"; rough ones warned
+ *   coatedconductor     MIRROR of its conductor; warned
+ *   dielectric          GLASS ior = eta (a named glass: its index); rough
+ *                       ones warned
+ *   thindielectric      GLASS, warned
+ *   diffusetransmission DIFFUSE kd = reflectance, warned
+ *   mix                 the first of its two materials, warned
+ *   interface, none     no surface: its shapes are dropped, warned
+ *   measured, hair, subsurface, conductors with textured constants:
+ *                       DIFFUSE grey 0.5, warned as not renderable
+ * Alpha in pbrt-v4 is TrowbridgeReitz's: sqrt(roughness) when
+ * remaproughness (the default), the roughness itself otherwise; pbrt renders
+ * alpha < 1e-3 as perfectly smooth, and so warns nothing here.
+ *
+ * Lights: AreaLightSource "diffuse" gives the emission le = L * scale (or
+ * the radiance that makes the shape emit "power" watts) to the shapes after
+ * it, one-sided; LightSource "point" and "spot" become point and spot
+ * lights (pbrt's spot falloff is the same smoothstep as light.c's, between
+ * cos(coneangle) and cos(coneangle - conedelta)); the other light types are
+ * warned as not rendered yet. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "base/reserve.h"
+#include "load/pbrt_impl.h"
+
+int pf_pbrt_texture(pf_pbrt_t *c, const char *name, const char *type, const char *cls, pf_pbrt_params_t *ps,
+                    pf_pbrt_loc_t loc)
+{
+    int is_float = strcmp(type, "float") == 0;
+    if (!is_float && strcmp(type, "spectrum") != 0 && strcmp(type, "color") != 0)
+        return pf_pbrt_error(c, PF_EPARSE, loc, "Texture \"%s\": type must be \"float\" or \"spectrum\", not \"%s\"",
+                             name, type);
+    int id = pf_pbrt_intern(c, name);
+    if (id < 0 || pf_reserve((void **)&c->texs, &c->cap_texs, c->ntexs + 1, sizeof *c->texs))
+        return pf_pbrt_error(c, PF_ENOMEM, loc, "out of memory");
+    int32_t *slot = is_float ? &c->named_ftex[id] : &c->named_stex[id];
+    if (*slot >= 0) {
+        int rc = pf_pbrt_warn(c, loc, "texture redefined", "Texture \"%s\" is defined again; the later one is used",
+                              name);
+        if (rc)
+            return rc;
+    }
+    pf_pbrt_tex_t *t = &c->texs[c->ntexs];
+    memset(t, 0, sizeof *t);
+    t->cls = strdup(cls);
+    if (!t->cls)
+        return pf_pbrt_error(c, PF_ENOMEM, loc, "out of memory");
+    t->name = id;
+    t->is_float = is_float;
+    t->params = *ps;
+    memset(ps, 0, sizeof *ps);
+    t->loc = loc;
+    *slot = (int32_t)c->ntexs++;
+    return PF_OK;
+}
+
+int pf_pbrt_find_texture(pf_pbrt_t *c, const char *name, int is_float, pf_pbrt_loc_t loc, pf_pbrt_tex_t **out)
+{
+    int id = pf_pbrt_name_find(c, name);
+    int32_t t = id < 0 ? -1 : is_float ? c->named_ftex[id] : c->named_stex[id];
+    if (t < 0)
+        return pf_pbrt_error(c, PF_EPARSE, loc, "no %s texture named \"%s\"", is_float ? "float" : "spectrum", name);
+    *out = &c->texs[t];
+    return PF_OK;
+}
+
+static const char *s_mat_types[] = {
+    "diffuse", "coateddiffuse", "conductor", "coatedconductor", "dielectric", "thindielectric", "diffusetransmission",
+    "mix", "interface", "none", "", "measured", "hair", "subsurface",
+};
+
+int pf_pbrt_material(pf_pbrt_t *c, const char *name, const char *type, pf_pbrt_params_t *ps, pf_pbrt_loc_t loc)
+{
+    int id = -1, rc;
+    if (name) {
+        if ((rc = pf_pbrt_get_string(c, ps, "type", NULL, &type)))
+            return rc;
+        if (!type)
+            return pf_pbrt_error(c, PF_EPARSE, loc, "MakeNamedMaterial \"%s\" has no \"string type\"", name);
+        if ((id = pf_pbrt_intern(c, name)) < 0)
+            return pf_pbrt_error(c, PF_ENOMEM, loc, "out of memory");
+        if (c->named_mat[id] >= 0) {
+            const pf_pbrt_mat_t *m = &c->mats[c->named_mat[id]];
+            return pf_pbrt_error(c, PF_EPARSE, loc, "material \"%s\" is defined twice (first at %s:%d)", name,
+                                 pf_pbrt_file_name(c, m->loc), m->loc.line);
+        }
+    }
+    size_t k = 0;
+    while (k < sizeof s_mat_types / sizeof *s_mat_types && strcmp(s_mat_types[k], type) != 0)
+        k++;
+    if (k == sizeof s_mat_types / sizeof *s_mat_types)
+        return pf_pbrt_error(c, PF_EPARSE, loc, "unknown material type \"%.60s\"", type);
+    if (pf_reserve((void **)&c->mats, &c->cap_mats, c->nmats + 1, sizeof *c->mats))
+        return pf_pbrt_error(c, PF_ENOMEM, loc, "out of memory");
+    pf_pbrt_mat_t *m = &c->mats[c->nmats];
+    memset(m, 0, sizeof *m);
+    m->type = strdup(type);
+    if (!m->type)
+        return pf_pbrt_error(c, PF_ENOMEM, loc, "out of memory");
+    m->name = id;
+    m->params = *ps;
+    memset(ps, 0, sizeof *ps);
+    m->loc = loc;
+    if (id >= 0) {
+        c->named_mat[id] = (int32_t)c->nmats;
+    } else {
+        c->gs.mat_kind = PF_PBRT_MAT_ANON;
+        c->gs.mat = (int)c->nmats;
+        c->gs.mat_loc = loc;
+    }
+    c->nmats++;
+    return PF_OK;
+}
+
+/* ---- converting materials ---- */
+
+/* The material's description for messages: Material "type" "name". */
+static void s_what(const pf_pbrt_t *c, const pf_pbrt_mat_t *m, char *out, size_t cap)
+{
+    if (m->name >= 0)
+        snprintf(out, cap, "material \"%.60s\" (%s)", c->names.s[m->name], m->type);
+    else
+        snprintf(out, cap, "Material \"%s\"", m->type);
+}
+
+/* pbrt's alpha from roughness, uroughness, vroughness and remaproughness:
+ * the larger of the two. */
+static int s_alpha(pf_pbrt_t *c, pf_pbrt_params_t *ps, const char *prefix, const char *what, double *alpha)
+{
+    char n[3][64];
+    const char *base[3] = { "roughness", "uroughness", "vroughness" };
+    for (int i = 0; i < 3; i++)
+        snprintf(n[i], sizeof n[i], "%s%s", prefix, base[i]);
+    double r, u, v;
+    int remap;
+    int rc = pf_pbrt_get_float_tex(c, ps, n[0], 0.0, what, &r, NULL);
+    if (rc == PF_OK)
+        rc = pf_pbrt_get_float_tex(c, ps, n[1], r, what, &u, NULL);
+    if (rc == PF_OK)
+        rc = pf_pbrt_get_float_tex(c, ps, n[2], r, what, &v, NULL);
+    if (rc == PF_OK)
+        rc = pf_pbrt_get_bool(c, ps, "remaproughness", 1, &remap);
+    if (rc)
+        return rc;
+    u = fmax(u, 0.0);
+    v = fmax(v, 0.0);
+    *alpha = remap ? sqrt(fmax(u, v)) : fmax(u, v);
+    return PF_OK;
+}
+
+/* Index of refraction from "eta" (float, spectrum or float texture). */
+static int s_eta(pf_pbrt_t *c, pf_pbrt_params_t *ps, const char *name, const char *what, double *eta)
+{
+    pf_pbrt_param_t *p = pf_pbrt_param(ps, name);
+    *eta = 1.5;
+    if (!p)
+        return PF_OK;
+    if (p->type == PF_PBRT_P_SPECTRUM) {
+        pf_vec3 v;
+        int rc = pf_pbrt_get_color(c, ps, name, PF_PBRT_UNBOUNDED, pf_v3s(1.5f), what, &v, NULL);
+        if (rc)
+            return rc;
+        *eta = v.y;
+        if (v.x != v.y || v.y != v.z)
+            return pf_pbrt_warn(c, p->loc, "dispersion (ignored)",
+                                "%s: eta varies with wavelength; the index at 532 nm (%g) is used", what, v.y);
+        return PF_OK;
+    }
+    int rc = pf_pbrt_get_float_tex(c, ps, name, 1.5, what, eta, NULL);
+    if (rc == PF_OK && !(*eta > 0.0))
+        rc = pf_pbrt_error(c, PF_ERANGE, p->loc, "%s: eta must be > 0", what);
+    return rc;
+}
+
+/* Marks every parameter used: for materials approximated as a whole. */
+static void s_use_all(pf_pbrt_params_t *ps)
+{
+    for (size_t i = 0; i < ps->n; i++)
+        ps->p[i].used = 1;
+}
+
+/* Whether the colour parameter name is a texture. */
+static int s_is_texture(pf_pbrt_params_t *ps, const char *name)
+{
+    for (size_t i = 0; i < ps->n; i++)
+        if (strcmp(ps->p[i].name, name) == 0)
+            return ps->p[i].type == PF_PBRT_P_TEXTURE;
+    return 0;
+}
+
+static int s_not_renderable(pf_pbrt_t *c, pf_pbrt_mat_t *m, const char *what, const char *why)
+{
+    m->m.type = PF_MAT_DIFFUSE;
+    m->m.kd = pf_v3s(0.5f);
+    s_use_all(&m->params);
+    return pf_pbrt_warn(c, m->loc, "material cannot be rendered (grey diffuse)", "%s %s: rendered as grey diffuse 0.5",
+                        what, why);
+}
+
+static int s_diffuse(pf_pbrt_t *c, pf_pbrt_mat_t *m, const char *what)
+{
+    m->m.type = PF_MAT_DIFFUSE;
+    return pf_pbrt_get_color(c, &m->params, "reflectance", PF_PBRT_ALBEDO, pf_v3s(0.5f), what, &m->m.kd, NULL);
+}
+
+static int s_coated_diffuse(pf_pbrt_t *c, pf_pbrt_mat_t *m, const char *what)
+{
+    double alpha, eta;
+    pf_vec3 r;
+    int rc = pf_pbrt_get_color(c, &m->params, "reflectance", PF_PBRT_ALBEDO, pf_v3s(0.5f), what, &r, NULL);
+    if (rc == PF_OK)
+        rc = s_alpha(c, &m->params, "", what, &alpha);
+    if (rc == PF_OK)
+        rc = s_eta(c, &m->params, "eta", what, &eta);
+    if (rc)
+        return rc;
+    double f0 = (eta - 1) * (eta - 1) / ((eta + 1) * (eta + 1));
+    /* Internal diffuse reflectance of the coat (relative index eta >= 1). */
+    double e = fmax(eta, 1.0), fdr = -1.440 / (e * e) + 0.710 / e + 0.668 + 0.0636 * e;
+    fdr = fmin(fmax(fdr, 0.0), 0.99);
+    float kd[3], rv[3] = { r.x, r.y, r.z };
+    for (int i = 0; i < 3; i++)
+        kd[i] = (float)((1 - f0) * (1 - fdr) * rv[i] / (1 - fdr * rv[i]));
+    m->m.type = PF_MAT_DIFFUSE;
+    m->m.kd = pf_v3(kd[0], kd[1], kd[2]);
+    m->m.ks = pf_v3s((float)f0);
+    m->m.ns = (float)fmin(alpha > 0.0 ? 2.0 / (alpha * alpha) - 2.0 : 1e4, 1e4);
+    m->m.ns = fmaxf(m->m.ns, 1.0f);
+    s_use_all(&m->params); /* thickness, albedo, g, maxdepth, nsamples: part of the approximation */
+    return pf_pbrt_warn(c, m->loc, "coateddiffuse (approximated)",
+                        "%s: rendered as diffuse kd (%.3g %.3g %.3g) under a Phong coat ks %.3g, ns %.0f", what,
+                        m->m.kd.x, m->m.kd.y, m->m.kd.z, f0, m->m.ns);
+}
+
+/* A conductor's normal-incidence reflectance from eta/k or reflectance. */
+static int s_conductor_f0(pf_pbrt_t *c, pf_pbrt_mat_t *m, const char *prefix, const char *what, int *ok)
+{
+    char ne[64], nk[64];
+    snprintf(ne, sizeof ne, "%seta", prefix);
+    snprintf(nk, sizeof nk, "%sk", prefix);
+    *ok = 0;
+    if (s_is_texture(&m->params, ne) || s_is_texture(&m->params, nk) || s_is_texture(&m->params, "reflectance"))
+        return PF_OK;
+    *ok = 1;
+    pf_vec3 eta, k, refl;
+    int found = 0;
+    int rc = pf_pbrt_get_color(c, &m->params, "reflectance", PF_PBRT_ALBEDO, pf_v3s(0.0f), what, &refl, &found);
+    pf_vec3 cu_eta, cu_k;
+    pf_pbrt_named_metal("metal-Cu-eta", &cu_eta);
+    pf_pbrt_named_metal("metal-Cu-k", &cu_k);
+    if (rc == PF_OK)
+        rc = pf_pbrt_get_color(c, &m->params, ne, PF_PBRT_UNBOUNDED, cu_eta, what, &eta, NULL);
+    if (rc == PF_OK)
+        rc = pf_pbrt_get_color(c, &m->params, nk, PF_PBRT_UNBOUNDED, cu_k, what, &k, NULL);
+    if (rc)
+        return rc;
+    if (found) {
+        m->m.ks = refl;
+        return PF_OK;
+    }
+    float n3[3] = { eta.x, eta.y, eta.z }, k3[3] = { k.x, k.y, k.z }, f[3];
+    for (int i = 0; i < 3; i++)
+        f[i] = ((n3[i] - 1) * (n3[i] - 1) + k3[i] * k3[i]) / ((n3[i] + 1) * (n3[i] + 1) + k3[i] * k3[i]);
+    m->m.ks = pf_v3(f[0], f[1], f[2]);
+    return PF_OK;
+}
+
+static int s_conductor(pf_pbrt_t *c, pf_pbrt_mat_t *m, const char *what, int coated)
+{
+    int ok;
+    double alpha;
+    int rc = s_conductor_f0(c, m, coated ? "conductor." : "", what, &ok);
+    if (rc)
+        return rc;
+    if (!ok)
+        return s_not_renderable(c, m, what, "has textured optical constants");
+    m->m.type = PF_MAT_MIRROR;
+    if (coated) {
+        s_use_all(&m->params);
+        return pf_pbrt_warn(c, m->loc, "coatedconductor (approximated)",
+                            "%s: rendered as its conductor, a mirror of reflectance (%.3g %.3g %.3g); the coat is "
+                            "left out",
+                            what, m->m.ks.x, m->m.ks.y, m->m.ks.z);
+    }
+    if ((rc = s_alpha(c, &m->params, "", what, &alpha)))
+        return rc;
+    if (alpha >= 1e-3)
+        return pf_pbrt_warn(c, m->loc, "rough conductor (rendered as a smooth mirror until GGX lands)",
+                            "%s: alpha %.3g; rendered as a mirror of reflectance (%.3g %.3g %.3g)", what, alpha,
+                            m->m.ks.x, m->m.ks.y, m->m.ks.z);
+    return PF_OK;
+}
+
+static int s_dielectric(pf_pbrt_t *c, pf_pbrt_mat_t *m, const char *what, int thin)
+{
+    double eta, alpha = 0.0;
+    int rc = s_eta(c, &m->params, "eta", what, &eta);
+    if (rc == PF_OK && !thin)
+        rc = s_alpha(c, &m->params, "", what, &alpha);
+    if (rc)
+        return rc;
+    m->m.type = PF_MAT_GLASS;
+    m->m.ks = m->m.kt = pf_v3s(1.0f);
+    m->m.ior = (float)eta;
+    if (thin)
+        return pf_pbrt_warn(c, m->loc, "thindielectric (rendered as solid glass)",
+                            "%s: rendered as glass of index %g with refraction", what, eta);
+    if (alpha >= 1e-3)
+        return pf_pbrt_warn(c, m->loc, "rough dielectric (rendered as smooth glass until GGX lands)",
+                            "%s: alpha %.3g; rendered as smooth glass of index %g", what, alpha, eta);
+    return PF_OK;
+}
+
+static int s_convert(pf_pbrt_t *c, pf_pbrt_mat_t *m);
+
+static int s_mix(pf_pbrt_t *c, pf_pbrt_mat_t *m, const char *what)
+{
+    pf_pbrt_param_t *p = pf_pbrt_param(&m->params, "materials");
+    if (!p || p->type != PF_PBRT_P_STRING || p->nstr != 2)
+        return pf_pbrt_error(c, PF_EPARSE, p ? p->loc : m->loc, "%s: needs \"string materials\" with two names", what);
+    pf_pbrt_param(&m->params, "amount");
+    int id = pf_pbrt_name_find(c, p->str[0]);
+    int32_t first = id < 0 ? -1 : c->named_mat[id];
+    if (first < 0)
+        return pf_pbrt_error(c, PF_EPARSE, p->loc, "%s: no material named \"%s\"", what, p->str[0]);
+    pf_pbrt_mat_t *f = &c->mats[first];
+    if (f->converted < 0)
+        return pf_pbrt_error(c, PF_EPARSE, p->loc, "%s: the mix refers to itself through \"%s\"", what, p->str[0]);
+    int rc = s_convert(c, f);
+    if (rc)
+        return rc;
+    f = &c->mats[first];
+    m->m = f->m;
+    m->no_surface = f->no_surface;
+    return pf_pbrt_warn(c, m->loc, "mix (the first material is used)", "%s: rendered as its first material \"%s\"",
+                        what, p->str[0]);
+}
+
+/* Converts material record m into m->m (once). */
+static int s_convert(pf_pbrt_t *c, pf_pbrt_mat_t *m)
+{
+    if (m->converted > 0)
+        return PF_OK;
+    char what[160];
+    s_what(c, m, what, sizeof what);
+    m->converted = -1;
+    m->m = pf_material_default(NULL);
+    m->m.kd = pf_v3s(0.5f);
+    const char *t = m->type;
+    int rc;
+    if (!strcmp(t, "diffuse"))
+        rc = s_diffuse(c, m, what);
+    else if (!strcmp(t, "coateddiffuse"))
+        rc = s_coated_diffuse(c, m, what);
+    else if (!strcmp(t, "conductor") || !strcmp(t, "coatedconductor"))
+        rc = s_conductor(c, m, what, t[0] == 'c' && t[1] == 'o' && t[2] == 'a');
+    else if (!strcmp(t, "dielectric") || !strcmp(t, "thindielectric"))
+        rc = s_dielectric(c, m, what, t[0] == 't');
+    else if (!strcmp(t, "diffusetransmission")) {
+        rc = s_diffuse(c, m, what);
+        s_use_all(&m->params);
+        if (rc == PF_OK)
+            rc = pf_pbrt_warn(c, m->loc, "diffusetransmission (transmission dropped)",
+                              "%s: rendered as diffuse reflection alone", what);
+    } else if (!strcmp(t, "mix"))
+        rc = s_mix(c, m, what);
+    else if (!strcmp(t, "interface") || !strcmp(t, "none") || !t[0]) {
+        m->no_surface = 1;
+        rc = PF_OK;
+    } else
+        rc = s_not_renderable(c, m, what, "is not supported");
+    const char *mods[] = { "displacement", "normalmap" };
+    for (int i = 0; i < 2 && rc == PF_OK; i++) {
+        pf_pbrt_param_t *p = pf_pbrt_param(&m->params, mods[i]);
+        if (p)
+            rc = pf_pbrt_warn(c, p->loc, i ? "normal map (ignored)" : "displacement (ignored)",
+                              "%s: \"%s\" is not rendered yet", what, mods[i]);
+    }
+    if (rc == PF_OK)
+        rc = pf_pbrt_check_unused(c, &m->params, what);
+    const char *f = pf_pbrt_file_name(c, m->loc), *slash = strrchr(f, '/');
+    if (m->name >= 0)
+        snprintf(m->m.name, sizeof m->m.name, "%s", c->names.s[m->name]);
+    else
+        snprintf(m->m.name, sizeof m->m.name, "%s@%.40s:%d", m->type, slash ? slash + 1 : f, m->loc.line);
+    m->converted = rc == PF_OK ? 1 : 0;
+    return rc;
+}
+
+/* ---- lights ---- */
+
+int pf_pbrt_area_light(pf_pbrt_t *c, const char *type, pf_pbrt_params_t *ps, pf_pbrt_loc_t loc)
+{
+    if (strcmp(type, "diffuse") != 0)
+        return pf_pbrt_error(c, PF_EPARSE, loc, "unknown AreaLightSource type \"%.60s\" (pbrt-v4 has \"diffuse\")",
+                             type);
+    pf_pbrt_area_t a = { .loc = loc };
+    double scale, power;
+    const char *image;
+    int rc = pf_pbrt_get_color(c, ps, "L", PF_PBRT_ILLUMINANT, pf_v3s(1.0f), "AreaLightSource", &a.le, NULL);
+    if (rc == PF_OK)
+        rc = pf_pbrt_get_float(c, ps, "scale", 1.0, &scale);
+    if (rc == PF_OK)
+        rc = pf_pbrt_get_float(c, ps, "power", 0.0, &power);
+    if (rc == PF_OK)
+        rc = pf_pbrt_get_bool(c, ps, "twosided", 0, &a.twosided);
+    if (rc == PF_OK)
+        rc = pf_pbrt_get_string(c, ps, "filename", NULL, &image);
+    if (rc == PF_OK && (scale < 0.0 || power < 0.0))
+        rc = pf_pbrt_error(c, PF_ERANGE, loc, "AreaLightSource: scale and power must be >= 0");
+    if (rc == PF_OK && image)
+        rc = pf_pbrt_warn(c, loc, "emission image (not rendered yet)",
+                          "AreaLightSource: the image \"%s\" is not read; L (%g %g %g) is emitted", image, a.le.x,
+                          a.le.y, a.le.z);
+    if (rc == PF_OK && a.twosided)
+        rc = pf_pbrt_warn(c, loc, "two-sided area light (emits on one side)",
+                          "AreaLightSource: \"twosided\" is not supported yet; the shapes emit on their front side only");
+    if (rc == PF_OK)
+        rc = pf_pbrt_check_unused(c, ps, "AreaLightSource");
+    if (rc)
+        return rc;
+    a.le = pf_scale(a.le, (float)scale);
+    a.power = power;
+    if (pf_reserve((void **)&c->areas, &c->cap_areas, c->nareas + 1, sizeof *c->areas))
+        return pf_pbrt_error(c, PF_ENOMEM, loc, "out of memory");
+    c->areas[c->nareas] = a;
+    c->gs.area = (int)c->nareas++;
+    return PF_OK;
+}
+
+/* A point of the light's space in world space. */
+static pf_vec3 s_world_point(const pf_pbrt_t *c, const double p[3])
+{
+    const double(*m)[4] = (const double(*)[4])c->gs.ctm;
+    double r[4];
+    for (int i = 0; i < 4; i++)
+        r[i] = m[i][0] * p[0] + m[i][1] * p[1] + m[i][2] * p[2] + m[i][3];
+    return pf_v3((float)(r[0] / r[3]), (float)(r[1] / r[3]), (float)(r[2] / r[3]));
+}
+
+/* LightSource "point" and "spot". */
+static int s_point_spot(pf_pbrt_t *c, int spot, pf_pbrt_params_t *ps, pf_pbrt_loc_t loc)
+{
+    const char *what = spot ? "LightSource \"spot\"" : "LightSource \"point\"";
+    pf_vec3 I;
+    double scale, power, from[3], to[3], cone = 30.0, delta = 5.0;
+    int rc = pf_pbrt_get_color(c, ps, "I", PF_PBRT_ILLUMINANT, pf_v3s(1.0f), what, &I, NULL);
+    if (rc == PF_OK)
+        rc = pf_pbrt_get_float(c, ps, "scale", 1.0, &scale);
+    if (rc == PF_OK)
+        rc = pf_pbrt_get_float(c, ps, "power", 0.0, &power);
+    if (rc == PF_OK)
+        rc = pf_pbrt_get_point3(c, ps, "from", pf_v3(0, 0, 0), from);
+    if (rc == PF_OK && spot)
+        rc = pf_pbrt_get_point3(c, ps, "to", pf_v3(0, 0, 1), to);
+    if (rc == PF_OK && spot)
+        rc = pf_pbrt_get_float(c, ps, "coneangle", 30.0, &cone);
+    if (rc == PF_OK && spot)
+        rc = pf_pbrt_get_float(c, ps, "conedelta", 5.0, &delta);
+    if (rc == PF_OK && (scale < 0.0 || power < 0.0))
+        rc = pf_pbrt_error(c, PF_ERANGE, loc, "%s: scale and power must be >= 0", what);
+    if (rc == PF_OK)
+        rc = pf_pbrt_check_unused(c, ps, what);
+    if (rc)
+        return rc;
+    pf_light_t l = { .type = spot ? PF_LIGHT_SPOT : PF_LIGHT_POINT, .pos = s_world_point(c, from) };
+    double k_e = 4.0 * M_PI;
+    if (spot) {
+        pf_vec3 d = pf_sub(s_world_point(c, to), l.pos);
+        if (!(pf_len2(d) > 0.0f) || !pf_is_finite3(d))
+            return pf_pbrt_error(c, PF_EPARSE, loc, "%s: \"from\" and \"to\" must differ", what);
+        l.dir = pf_norm(d);
+        double cos_end = cos(cone * M_PI / 180.0), cos_start = cos((cone - delta) * M_PI / 180.0);
+        l.cos_outer = (float)cos_end;
+        l.cos_inner = (float)cos_start;
+        k_e = 2.0 * M_PI * ((1.0 - cos_start) + (cos_start - cos_end) / 2.0);
+    }
+    if (power > 0.0 && k_e > 0.0)
+        scale *= power / k_e;
+    l.intensity = pf_scale(I, (float)scale);
+    if (!pf_is_finite3(l.intensity) || !pf_is_finite3(l.pos))
+        return pf_pbrt_error(c, PF_ERANGE, loc, "%s: position or intensity is not finite", what);
+    if (c->cur_object >= 0)
+        return pf_pbrt_warn(c, loc, "light inside an object definition (ignored)",
+                            "%s inside ObjectBegin is not instanced (pbrt ignores it too)", what);
+    if (pf_scene_add_light(c->scene, &l))
+        return pf_pbrt_error(c, PF_ENOMEM, loc, "out of memory");
+    return PF_OK;
+}
+
+int pf_pbrt_light(pf_pbrt_t *c, const char *type, pf_pbrt_params_t *ps, pf_pbrt_loc_t loc)
+{
+    if (!strcmp(type, "point") || !strcmp(type, "spot"))
+        return s_point_spot(c, type[0] == 's', ps, loc);
+    static const char *later[] = { "distant", "infinite", "goniometric", "projection" };
+    for (size_t i = 0; i < sizeof later / sizeof *later; i++) {
+        if (strcmp(type, later[i]) != 0)
+            continue;
+        char kind[64];
+        snprintf(kind, sizeof kind, "light type %s (not rendered yet)", type);
+        for (size_t k = 0; k < ps->n; k++)
+            ps->p[k].used = 1;
+        return pf_pbrt_warn(c, loc, kind, "LightSource \"%s\" is not rendered: it adds no light", type);
+    }
+    return pf_pbrt_error(c, PF_EPARSE, loc, "unknown LightSource type \"%.60s\"", type);
+}
+
+/* ---- pairs and the scene's materials ---- */
+
+int pf_pbrt_pair(pf_pbrt_t *c, int area, pf_vec3 le, pf_pbrt_loc_t loc)
+{
+    char key[160];
+    snprintf(key, sizeof key, "%d:%d:%d:%a:%a:%a", c->gs.mat_kind, c->gs.mat, area, (double)le.x, (double)le.y,
+             (double)le.z);
+    int id = pf_pbrt_intern(c, key);
+    if (id < 0)
+        return pf_pbrt_error(c, PF_ENOMEM, loc, "out of memory");
+    int32_t *slot = &c->named_pair[id];
+    if (*slot >= 0)
+        return *slot;
+    if (c->npairs >= INT32_MAX / 2 || pf_reserve((void **)&c->pairs, &c->cap_pairs, c->npairs + 1, sizeof *c->pairs))
+        return pf_pbrt_error(c, PF_ENOMEM, loc, "out of memory");
+    c->pairs[c->npairs] = (pf_pbrt_pair_t){ .mat_kind = c->gs.mat_kind, .mat = c->gs.mat, .area = area, .le = le,
+                                            .loc = loc, .mat_loc = c->gs.mat_loc, .out = -1 };
+    *slot = (int32_t)c->npairs;
+    return (int)c->npairs++;
+}
+
+/* The scene material of pair p (p->out), made on first use. */
+static int s_emit_pair(pf_pbrt_t *c, pf_pbrt_pair_t *p, size_t index)
+{
+    pf_material_t m = pf_material_default("default");
+    m.kd = pf_v3s(0.5f); /* pbrt's default material: diffuse, reflectance 0.5 */
+    int rc = PF_OK;
+    if (p->mat_kind != PF_PBRT_MAT_DEFAULT) {
+        int32_t r = p->mat;
+        if (p->mat_kind == PF_PBRT_MAT_NAMED && (r = c->named_mat[p->mat]) < 0)
+            return pf_pbrt_error_line(c, PF_EPARSE, p->mat_loc, "NamedMaterial \"%s\" is not defined",
+                                      c->names.s[p->mat]);
+        if ((rc = s_convert(c, &c->mats[r])))
+            return rc;
+        if (c->mats[r].no_surface) {
+            p->out = -1;
+            return PF_OK;
+        }
+        m = c->mats[r].m;
+    }
+    m.le = p->le;
+    if (!pf_is_black(p->le)) {
+        char base[PF_NAME_MAX], suffix[32];
+        snprintf(base, sizeof base, "%s", m.name);
+        int k = snprintf(suffix, sizeof suffix, " (light %zu)", index);
+        snprintf(m.name, sizeof m.name, "%.*s%s", (int)(sizeof m.name - 1 - (size_t)k), base, suffix);
+    }
+    int mi = pf_scene_add_material(c->scene, &m);
+    if (mi < 0)
+        return pf_pbrt_error_line(c, PF_ENOMEM, p->loc, "out of memory");
+    p->out = mi;
+    return PF_OK;
+}
+
+int pf_pbrt_emit_materials(pf_pbrt_t *c)
+{
+    for (size_t i = 0; i < c->npairs; i++) {
+        int rc = s_emit_pair(c, &c->pairs[i], i);
+        if (rc)
+            return rc;
+    }
+    /* Materials no shape uses: converted for their warnings alone. */
+    for (size_t i = 0; i < c->nmats; i++) {
+        int rc = s_convert(c, &c->mats[i]);
+        if (rc)
+            return rc;
+    }
+    return PF_OK;
+}
