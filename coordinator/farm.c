@@ -2,18 +2,35 @@
  *
  * Threads: the caller's thread runs the event loop and owns the ROUTER
  * socket; a helper thread runs the photon pass (so workers that connect in
- * the meantime are welcomed and heartbeated); the ZAP thread (zap.c)
- * authenticates CURVE clients.
+ * the meantime are welcomed and heartbeated) and frames the blobs; the ZAP
+ * thread (zap.c) authenticates CURVE clients; libzmq's I/O thread calls
+ * transfer.c back when it is done with a blob chunk.
  *
- * Tiles are leased as (job, tile, attempt). The first valid RESULT for a
- * tile wins; later ones are counted as duplicates and dropped. A lease
- * returns its tile to the front of the queue (attempt + 1) when its worker
- * falls silent for dead_after heartbeats, when its progress counter stalls
- * for watchdog_s while it holds tiles (stuck in compute: libzmq's own
- * heartbeat would still be answered by its I/O thread), or after
- * lease_timeout_s. Each worker holds up to the credit it announced, so it
- * never idles waiting for the next tile. Every frame from the network goes
- * through pf_msg_decode; a bad one is logged (rate-limited) and dropped. */
+ * What lives where: the worker table, its ids, strikes and blocklist in
+ * registry.c; tiles, the queue and leases in leases.c; the framed blobs and
+ * the per-worker transfer windows in transfer.c; the conversation with the
+ * workers (what a message is worth, leasing, strikes, eviction) in
+ * farm_peers.c. This file is the photon thread, the event loop, the
+ * housekeeping (when a worker is dead, stuck, or its lease expired) and the
+ * job's steps.
+ *
+ * Tiles are leased as (job, tile, attempt) to a worker id that is never
+ * reused. The first valid RESULT for a tile wins; later ones are counted as
+ * duplicates and dropped. A lease returns its tile to the front of the queue
+ * (attempt + 1) when its worker falls silent for dead_after heartbeats or is
+ * disconnected, when it holds tiles and returns no RESULT for watchdog_s
+ * (stuck in compute, or hoarding: the worker's own progress counter is not
+ * trusted), after lease_timeout_s, or, once the queue is empty, when an idle
+ * worker that never held the tile can take it over. Each worker holds at
+ * most its tile credit (farm.h: credit_per_thread), so none idles waiting
+ * and none takes the whole queue.
+ *
+ * Every frame from the network goes through pf_msg_decode; a bad one is
+ * logged (rate-limited) and dropped, and when it comes from a registered
+ * worker it is a strike, as is a message out of turn, an expired lease or a
+ * stall; past max_strikes the worker is evicted: BYE, its tiles re-queued,
+ * its slot freed, its routing identity, name and CURVE key blocked until the
+ * job ends. */
 #include "coordinator/farm.h"
 
 #include <errno.h>
@@ -30,66 +47,44 @@
 #include "base/hash.h"
 #include "base/keyfile.h"
 #include "base/log.h"
-#include "coordinator/progress.h"
+#include "coordinator/farm_impl.h"
 #include "coordinator/spawn.h"
-#include "coordinator/zap.h"
 #include "photon/mapfile.h"
 #include "proto/messages.h"
 #include "proto/sceneblob.h"
 #include "render/render.h"
 
-#define S_MAX_WORKERS 1024
-#define S_MAX_LOCAL 256
+#define S_STALL_TIMES 8.0 /* the stall deadline is at least this many typical tile times */
 
-enum { W_FREE = 0, W_HELLO, W_JOB_SENT, W_READY, W_DEAD };
-enum { T_QUEUED = 0, T_LEASED, T_DONE };
-
-typedef struct s_worker {
-    int state;
-    uint8_t id[256];
-    size_t idlen;
-    uint32_t wid;
-    char name[64];
-    uint32_t threads;
-    double last_seen, last_sent;
-    uint64_t progress;
-    double progress_at; /* when progress last changed */
-    int stuck;
-    uint32_t credit, held;
-    uint64_t tiles;
-    uint64_t blob_sent; /* bytes of scene and maps sent in this job (for the transfer display) */
-} s_worker;
-
-#define S_LESSEES 4
-
-typedef struct s_tile {
-    int state;
-    uint32_t attempt;
-    int owner; /* worker slot of the current lease, or -1 */
-    int lessees[S_LESSEES]; /* the last workers this tile was leased to: only they may return it */
-    int nlessees;
-    double leased_at;
-    uint32_t x0, y0, w, h;
-} s_tile;
-
-/* The photon pass, run in its own thread. */
-typedef struct s_photons {
-    const pf_scene_t *scene;
-    pf_settings_t settings; /* a time limit changes them here, before the job goes out */
-    pf_budget_t *budget;
-    unsigned terms;
-    pf_frame_t frame; /* the scene's accel and lights, then the maps */
-    pf_photon_stats_t stats;
-    pf_buf_t scene_blob, maps_blob;
-    uint64_t scene_hash, maps_hash;
-    int rc;
-    volatile int done;
-    pf_error_t err;
-} s_photons;
+/* Serializes the scene and the maps, names them by content hash, and cuts
+ * them into chunk frames (in place: the blobs are not held twice). */
+static int s_photon_blobs(pf_fm_photons_t *p)
+{
+    pf_buf_t sb = { 0 }, mb = { 0 };
+    int rc = pf_sceneblob_write(p->scene, &sb);
+    if (rc == PF_OK) {
+        p->scene_hash = pf_hash_bytes(PF_HASH_INIT, sb.data, sb.len);
+        rc = pf_mapfile_write(&p->frame.maps, p->scene_hash, pf_settings_hash(&p->settings), &mb);
+        p->maps_hash = pf_hash_bytes(PF_HASH_INIT, mb.data, mb.len);
+        if (rc)
+            pf_error_set(&p->err, rc, NULL, 0, "cannot serialize the photon maps: %s", pf_strerror(rc));
+    }
+    p->scene_size = sb.len;
+    p->maps_size = mb.len;
+    if (rc == PF_OK)
+        rc = pf_framed_blob_make(&p->scene_fb, p->job, p->scene_hash, &sb);
+    if (rc == PF_OK)
+        rc = pf_framed_blob_make(&p->maps_fb, p->job, p->maps_hash, &mb);
+    pf_buf_free(&sb);
+    pf_buf_free(&mb);
+    if (rc != PF_OK && p->err.msg[0] == 0)
+        pf_error_set(&p->err, rc, NULL, 0, "cannot prepare the scene and map blobs: %s", pf_strerror(rc));
+    return rc;
+}
 
 static void *s_photon_thread(void *arg)
 {
-    s_photons *p = arg;
+    pf_fm_photons_t *p = arg;
     pf_frame_t *fr = &p->frame;
     p->rc = pf_frame_open(fr, p->scene, &p->err);
     if (p->rc == PF_OK) {
@@ -109,405 +104,73 @@ static void *s_photon_thread(void *arg)
         pf_budget_log(p->budget, &p->settings);
     }
     if (p->rc == PF_OK)
-        p->rc = pf_sceneblob_write(p->scene, &p->scene_blob);
-    if (p->rc == PF_OK) {
-        p->scene_hash = pf_hash_bytes(PF_HASH_INIT, p->scene_blob.data, p->scene_blob.len);
-        p->rc = pf_mapfile_write(&fr->maps, p->scene_hash, pf_settings_hash(&p->settings), &p->maps_blob);
-        p->maps_hash = pf_hash_bytes(PF_HASH_INIT, p->maps_blob.data, p->maps_blob.len);
-        if (p->rc)
-            pf_error_set(&p->err, p->rc, NULL, 0, "cannot serialize the photon maps: %s", pf_strerror(p->rc));
-    }
+        p->rc = s_photon_blobs(p);
     __atomic_store_n(&p->done, 1, __ATOMIC_RELEASE);
     return NULL;
 }
 
-typedef struct s_farm {
-    const pf_farm_opts_t *o;
-    void *ctx, *sock;
-    uint64_t job;
-    s_worker *w;
-    int nw;
-    s_tile *t;
-    int nt, ndone;
-    int *queue; /* tile indices, a ring */
-    int qhead, qlen;
-    s_photons ph;
-    pf_msg_job_t jobmsg;
-    int job_ready;
-    pf_image_t *img;
-    pf_buf_t out;
-    pf_farm_summary_t *sum;
-    uint32_t next_wid;
-    double last_bad_log;
-    int bad_since_log;
-    int leasing; /* tiles have been leased: --min-workers was met once */
-    /* What pf_farm_render's steps share: the job's clock, what it started
-     * (and must stop), and the event loop's clocks. */
-    double t0;          /* when the job began */
-    int ts;             /* tile side in pixels */
-    char endpoint[256]; /* where the socket listens, for the local workers */
-    pf_zap_t *zap;
-    pid_t pids[S_MAX_LOCAL];
-    int npids;
-    pthread_t phtid;
-    int ph_started; /* the photon thread runs and has not been joined */
-    pf_progress_t bar;
-    double render_start, last_log, no_worker_since;
-} s_farm;
-
-/* --- sending ------------------------------------------------------------ */
-
-static int s_send(s_farm *f, int wi, pf_msg_t *m)
-{
-    s_worker *w = &f->w[wi];
-    m->job = m->job ? m->job : f->job;
-    if (pf_msg_encode(m, &f->out) != PF_OK)
-        return -1;
-    if (zmq_send(f->sock, w->id, w->idlen, ZMQ_SNDMORE | ZMQ_DONTWAIT) < 0 ||
-        zmq_send(f->sock, f->out.data, f->out.len, ZMQ_DONTWAIT) < 0) {
-        /* ROUTER_MANDATORY: an unroutable peer is gone; a full queue waits. */
-        if (zmq_errno() == EHOSTUNREACH && w->state != W_DEAD)
-            pf_debug("worker %s is unreachable", w->name);
-        return -1;
-    }
-    w->last_sent = pf_now();
-    f->sum->bytes_sent += f->out.len;
-    return 0;
-}
-
-static void s_requeue(s_farm *f, int ti, int front)
-{
-    s_tile *t = &f->t[ti];
-    if (t->state == T_DONE)
-        return;
-    if (t->state == T_LEASED && t->owner >= 0 && f->w[t->owner].held > 0)
-        f->w[t->owner].held--;
-    t->state = T_QUEUED;
-    t->owner = -1;
-    t->attempt++;
-    if (front) {
-        f->qhead = (f->qhead + f->nt - 1) % f->nt;
-        f->queue[f->qhead] = ti;
-    } else {
-        f->queue[(f->qhead + f->qlen) % f->nt] = ti;
-    }
-    f->qlen++;
-    f->sum->reissued++;
-}
-
-/* Returns a worker's leased tiles to the front of the queue. */
-static void s_release_worker(s_farm *f, int wi, const char *why)
-{
-    int n = 0;
-    for (int i = 0; i < f->nt; i++)
-        if (f->t[i].state == T_LEASED && f->t[i].owner == wi) {
-            s_requeue(f, i, 1);
-            n++;
-        }
-    f->w[wi].held = 0;
-    if (n || why)
-        pf_warn("worker %s %s: %d tile%s re-issued", f->w[wi].name, why ? why : "released", n, n == 1 ? "" : "s");
-}
-
-static void s_lease(s_farm *f, int wi)
-{
-    s_worker *w = &f->w[wi];
-    if (w->state != W_READY || w->stuck)
-        return;
-    if (!f->leasing) { /* --min-workers holds back the start only, never a running job */
-        int ready = 0;
-        for (int i = 0; i < f->nw; i++)
-            ready += f->w[i].state == W_READY;
-        if (ready < f->o->min_workers)
-            return;
-        f->leasing = 1;
-    }
-    if (w->held == 0 && f->qlen > 0)
-        w->progress_at = pf_now(); /* the stall clock runs only while it holds tiles */
-    while (w->held < w->credit && f->qlen > 0) {
-        int ti = f->queue[f->qhead];
-        f->qhead = (f->qhead + 1) % f->nt;
-        f->qlen--;
-        s_tile *t = &f->t[ti];
-        pf_msg_t m = { .type = PF_MSG_TILE };
-        m.u.tile = (pf_msg_tile_t){ (uint32_t)ti, t->attempt, t->x0, t->y0, t->w, t->h };
-        t->state = T_LEASED;
-        t->owner = wi;
-        t->leased_at = pf_now();
-        if (t->nlessees == S_LESSEES) {
-            memmove(t->lessees, t->lessees + 1, (S_LESSEES - 1) * sizeof *t->lessees);
-            t->nlessees--;
-        }
-        t->lessees[t->nlessees++] = wi;
-        w->held++;
-        if (s_send(f, wi, &m) != 0) {
-            s_requeue(f, ti, 1);
-            f->sum->reissued--; /* never left: not a re-issue */
-            f->t[ti].attempt--;
-            break;
-        }
-    }
-}
-
-static void s_lease_all(s_farm *f)
-{
-    for (int i = 0; i < f->nw; i++)
-        s_lease(f, i);
-}
-
-static void s_send_job(s_farm *f, int wi)
-{
-    pf_msg_t m = { .type = PF_MSG_JOB };
-    m.u.job = f->jobmsg;
-    if (s_send(f, wi, &m) == 0)
-        f->w[wi].state = W_JOB_SENT;
-}
-
-/* --- receiving ---------------------------------------------------------- */
-
-static int s_find(s_farm *f, const uint8_t *id, size_t len)
-{
-    for (int i = 0; i < f->nw; i++)
-        if (f->w[i].state != W_FREE && f->w[i].idlen == len && memcmp(f->w[i].id, id, len) == 0)
-            return i;
-    return -1;
-}
-
-static void s_bad(s_farm *f, const char *peer, const char *why)
-{
-    f->sum->malformed++;
-    double now = pf_now();
-    if (now - f->last_bad_log > 2.0) {
-        if (f->bad_since_log)
-            pf_warn("dropped %d more malformed messages", f->bad_since_log);
-        pf_warn("dropped a malformed message from %s: %s", peer, why);
-        f->last_bad_log = now;
-        f->bad_since_log = 0;
-    } else {
-        f->bad_since_log++;
-    }
-}
-
-static void s_on_hello(s_farm *f, const uint8_t *id, size_t idlen, const pf_msg_hello_t *h)
-{
-    char why[256] = "";
-    pf_fingerprint_t self = pf_frame_fingerprint();
-    int wi = s_find(f, id, idlen);
-    if (wi < 0) {
-        for (wi = 0; wi < f->nw && f->w[wi].state != W_FREE; wi++)
-            ;
-        if (wi == f->nw) {
-            if (f->nw == S_MAX_WORKERS) {
-                pf_warn("too many workers; ignoring %s", h->name);
-                return;
-            }
-            f->nw++;
-        }
-        memset(&f->w[wi], 0, sizeof f->w[wi]);
-        memcpy(f->w[wi].id, id, idlen);
-        f->w[wi].idlen = idlen;
-    } else if (f->w[wi].held) {
-        s_release_worker(f, wi, "registered again");
-    }
-    s_worker *w = &f->w[wi];
-    snprintf(w->name, sizeof w->name, "%.63s", h->name);
-    w->threads = h->threads;
-    w->last_seen = w->progress_at = pf_now();
-    if (pf_fingerprint_check(&h->fp, &self, why, sizeof why) != PF_OK) {
-        pf_msg_t m = { .type = PF_MSG_REFUSE };
-        snprintf(m.u.refuse.reason, sizeof m.u.refuse.reason, "%s", why);
-        w->state = W_HELLO;
-        s_send(f, wi, &m);
-        pf_warn("refused worker %s: %s", w->name, why);
-        f->sum->refused++;
-        w->state = W_FREE;
-        return;
-    }
-    if (strcmp(h->fp.git, self.git) != 0)
-        pf_info("worker %s was built from %s (this coordinator: %s)", w->name, h->fp.git, self.git);
-    w->state = W_HELLO;
-    w->wid = ++f->next_wid;
-    f->sum->workers_seen++;
-    pf_msg_t m = { .type = PF_MSG_WELCOME };
-    m.u.welcome = (pf_msg_welcome_t){ w->wid, (uint32_t)f->o->heartbeat_ms };
-    s_send(f, wi, &m);
-    pf_info("worker %s joined (%u thread%s)", w->name, w->threads, w->threads == 1 ? "" : "s");
-    if (f->job_ready)
-        s_send_job(f, wi);
-}
-
-static void s_on_blob_req(s_farm *f, int wi, const pf_msg_blob_req_t *r)
-{
-    const pf_buf_t *blob = r->hash == f->ph.scene_hash ? &f->ph.scene_blob
-                         : r->hash == f->ph.maps_hash  ? &f->ph.maps_blob
-                                                       : NULL;
-    if (!f->job_ready || !blob) {
-        pf_warn("worker %s asked for an unknown blob %016llx", f->w[wi].name, (unsigned long long)r->hash);
-        return;
-    }
-    uint64_t off = r->offset;
-    for (uint32_t c = 0; c < r->credit && off < blob->len; c++) {
-        uint64_t len = blob->len - off < PF_PROTO_CHUNK_SIZE ? blob->len - off : PF_PROTO_CHUNK_SIZE;
-        pf_msg_t m = { .type = PF_MSG_BLOB_CHUNK };
-        m.u.chunk = (pf_msg_blob_chunk_t){ r->hash, blob->len, off, (uint32_t)len, blob->data + off };
-        if (s_send(f, wi, &m) != 0)
-            break;
-        f->sum->blob_bytes += len;
-        f->w[wi].blob_sent += len;
-        off += len;
-    }
-}
-
-static void s_on_result(s_farm *f, int wi, const pf_msg_result_t *r)
-{
-    if (r->tile >= (uint32_t)f->nt) {
-        s_bad(f, f->w[wi].name, "RESULT for a tile that does not exist");
-        return;
-    }
-    s_tile *t = &f->t[r->tile];
-    if (r->x0 != t->x0 || r->y0 != t->y0 || r->w != t->w || r->h != t->h || r->attempt > t->attempt) {
-        s_bad(f, f->w[wi].name, "RESULT does not match its tile's lease");
-        return;
-    }
-    int leased = 0;
-    for (int k = 0; k < t->nlessees; k++)
-        leased |= t->lessees[k] == wi;
-    if (!leased) {
-        s_bad(f, f->w[wi].name, "RESULT for a tile that was not leased to it");
-        return;
-    }
-    /* Invariant: a worker's held = tiles in state LEASED whose owner it is. */
-    if (t->state == T_DONE) {
-        f->sum->duplicates++;
-        return;
-    }
-    if (t->state == T_LEASED) {
-        if (t->owner >= 0 && f->w[t->owner].held > 0)
-            f->w[t->owner].held--;
-    } else { /* re-issued and waiting in the queue: this result makes it done, take it out */
-        for (int k = 0; k < f->qlen; k++) {
-            if (f->queue[(f->qhead + k) % f->nt] != (int)r->tile)
-                continue;
-            for (int j = k; j > 0; j--)
-                f->queue[(f->qhead + j) % f->nt] = f->queue[(f->qhead + j - 1) % f->nt];
-            f->qhead = (f->qhead + 1) % f->nt;
-            f->qlen--;
-            break;
-        }
-    }
-    float *row = malloc((size_t)r->w * 3 * sizeof *row * r->h);
-    if (!row)
-        return;
-    pf_msg_result_pixels(r, row);
-    for (uint32_t y = 0; y < r->h; y++)
-        memcpy(&f->img->rgb[3 * ((size_t)(r->y0 + y) * (size_t)f->img->width + r->x0)], &row[3 * (size_t)y * r->w],
-               (size_t)r->w * 3 * sizeof(float));
-    free(row);
-    t->state = T_DONE;
-    t->owner = -1;
-    f->ndone++;
-    f->sum->results++;
-    f->w[wi].tiles++;
-}
-
-static void s_on_frame(s_farm *f, const uint8_t *id, size_t idlen, const uint8_t *data, size_t len)
-{
-    pf_msg_t m;
-    char why[256] = "";
-    int wi = s_find(f, id, idlen);
-    char peer[80];
-    if (wi >= 0)
-        snprintf(peer, sizeof peer, "worker %s", f->w[wi].name);
-    else
-        snprintf(peer, sizeof peer, "an unregistered peer");
-    int rc = pf_msg_decode(data, len, &m, why, sizeof why);
-    if (rc != PF_OK) {
-        s_bad(f, peer, why);
-        return;
-    }
-    if (m.type == PF_MSG_HELLO) {
-        s_on_hello(f, id, idlen, &m.u.hello);
-        return;
-    }
-    if (wi < 0) {
-        s_bad(f, peer, "message before HELLO");
-        return;
-    }
-    s_worker *w = &f->w[wi];
-    if (w->state == W_DEAD) {
-        /* Messages still queued on a dead worker's old connection do not
-         * bring it back (a worker that really is back registers again with a
-         * HELLO); its results still count, as first results or duplicates. */
-        if (m.type == PF_MSG_RESULT && m.job == f->job)
-            s_on_result(f, wi, &m.u.result);
-        else
-            pf_debug("ignored %s from dead worker %s", pf_msg_type_name(m.type), w->name);
-        return;
-    }
-    w->last_seen = pf_now();
-    if (m.type != PF_MSG_BYE && m.job != f->job && m.type != PF_MSG_HEARTBEAT) {
-        pf_debug("dropped %s for job %llu from %s", pf_msg_type_name(m.type), (unsigned long long)m.job, peer);
-        return;
-    }
-    switch (m.type) {
-    case PF_MSG_HEARTBEAT:
-        if (m.u.heartbeat.progress != w->progress) {
-            w->progress = m.u.heartbeat.progress;
-            w->progress_at = w->last_seen;
-            if (w->stuck) {
-                pf_info("worker %s makes progress again", w->name);
-                w->stuck = 0;
-            }
-        }
-        break;
-    case PF_MSG_BLOB_REQ: s_on_blob_req(f, wi, &m.u.blob_req); break;
-    case PF_MSG_READY:
-        if (w->state != W_READY)
-            pf_info("worker %s ready: scene and maps built", w->name);
-        w->state = W_READY;
-        w->credit = m.u.ready.credit;
-        w->progress_at = w->last_seen;
-        break;
-    case PF_MSG_RESULT: s_on_result(f, wi, &m.u.result); break;
-    case PF_MSG_BYE:
-        pf_info("worker %s left: %s", w->name, m.u.bye.reason);
-        s_release_worker(f, wi, NULL);
-        w->state = W_FREE;
-        break;
-    default: s_bad(f, peer, "unexpected message type for a coordinator"); break;
-    }
-}
-
+/* A log line that may come once per message of a flood: at most `rate`
+ * lines a second (a burst of twice that); the lines held back are counted
+ * and said with the next one that passes. */
 /* --- housekeeping -------------------------------------------------------- */
 
-static void s_tick(s_farm *f)
+/* How long a worker may hold tiles without a RESULT: watchdog_s, or
+ * S_STALL_TIMES typical tile times when the job's tiles are that slow. */
+static double s_stall_s(const pf_fm_t *f)
 {
-    double now = pf_now();
+    double typical = S_STALL_TIMES * pf_leases_typical_s(&f->L);
+    return typical > f->o->watchdog_s ? typical : f->o->watchdog_s;
+}
+
+static void s_tick_worker(pf_fm_t *f, int i, double now, double stall)
+{
+    pf_worker_t *w = &f->reg.w[i];
     double hb = f->o->heartbeat_ms / 1000.0;
-    for (int i = 0; i < f->nw; i++) {
-        s_worker *w = &f->w[i];
-        if (w->state == W_FREE || w->state == W_DEAD)
-            continue;
-        if (now - w->last_seen > f->o->dead_after * hb) {
-            w->state = W_DEAD;
-            f->sum->workers_lost++;
-            s_release_worker(f, i, "is silent: declared dead");
-            continue;
-        }
-        if (w->held && !w->stuck && now - w->progress_at > f->o->watchdog_s) {
-            w->stuck = 1;
-            s_release_worker(f, i, "makes no progress (stuck in compute?)");
-        }
-        if (now - w->last_sent >= hb) {
-            pf_msg_t m = { .type = PF_MSG_HEARTBEAT };
-            s_send(f, i, &m);
-        }
+    if (now - w->last_seen > f->o->dead_after * hb) {
+        pf_fm_declare_dead(f, i, "is silent: declared dead");
+        return;
     }
-    for (int i = 0; i < f->nt; i++)
-        if (f->t[i].state == T_LEASED && now - f->t[i].leased_at > f->o->lease_timeout_s) {
-            pf_warn("lease of tile %d expired", i);
-            s_requeue(f, i, 1);
-        }
+    if (w->held && !w->stuck && now - w->result_at > stall) {
+        char why[160];
+        snprintf(why, sizeof why, "held %u tile%s and returned no RESULT for %.0f s", w->held, w->held == 1 ? "" : "s",
+                 now - w->result_at);
+        w->stuck = 1;
+        f->sum->stalls++;
+        pf_fm_release_worker(f, i, "makes no progress (stuck in compute, or hoarding?)");
+        pf_fm_strike(f, i, why);
+        if (w->state == PF_W_FREE)
+            return; /* evicted */
+    }
+    if (f->job_ready && w->state == PF_W_HELLO)
+        pf_fm_send_job(f, i); /* its queue was full when the job went out */
+    if (w->state != PF_W_DEAD && pf_xfer_waiting(f->xfer, i))
+        pf_fm_pump(f, i);
+    if (w->state != PF_W_DEAD && now - w->last_sent >= hb) {
+        pf_msg_t m = { .type = PF_MSG_HEARTBEAT };
+        pf_fm_send(f, i, &m);
+    }
+}
+
+static void s_tick(pf_fm_t *f)
+{
+    double now = pf_now(), stall = s_stall_s(f);
+    for (int i = 0; i < f->reg.nw; i++) {
+        int st = f->reg.w[i].state;
+        if (st == PF_W_HELLO || st == PF_W_JOB_SENT || st == PF_W_READY)
+            s_tick_worker(f, i, now, stall);
+    }
+    for (int i = 0; i < f->L.nt; i++) {
+        const pf_tile_t *t = &f->L.t[i];
+        if (t->state != PF_T_LEASED || now - t->leased_at <= f->o->lease_timeout_s)
+            continue;
+        int owner = t->owner >= 0 && f->reg.w[t->owner].uid == t->owner_uid ? t->owner : -1;
+        pf_warn("lease of tile %d (worker %s) expired after %.0f s", i, owner >= 0 ? f->reg.w[owner].name : "?",
+                now - t->leased_at);
+        f->sum->expired++;
+        pf_leases_revoke(&f->L, &f->reg, i);
+        if (owner >= 0)
+            pf_fm_strike(f, owner, "a lease expired");
+    }
 }
 
 /* --- the job's steps ------------------------------------------------------ */
@@ -521,6 +184,14 @@ void pf_farm_opts_default(pf_farm_opts_t *o)
     o->lease_timeout_s = 120.0;
     o->watchdog_s = 30.0;
     o->min_workers = 1;
+    o->max_workers = 1024;
+    o->hello_rate = 100.0;
+    o->max_strikes = 8;
+    o->blob_window = 8;
+    o->send_hwm = 256;
+    o->credit_per_thread = 2;
+    o->takeover_factor = 4.0;
+    o->takeover_min_s = 2.0;
 }
 
 static int s_loopback(const char *ep)
@@ -529,34 +200,25 @@ static int s_loopback(const char *ep)
            strstr(ep, "://localhost") || strstr(ep, "://[::1]");
 }
 
-/* The tile table, all tiles queued in order, and the worker table. */
-static int s_alloc_tables(s_farm *f, const pf_settings_t *s, pf_error_t *err)
+/* The tile table (all tiles queued in order), the worker registry and the
+ * blob server. */
+static int s_alloc_tables(pf_fm_t *f, const pf_settings_t *s, pf_error_t *err)
 {
-    int ts = f->o->tile_size > 0 ? f->o->tile_size : 32;
-    int tx = (s->width + ts - 1) / ts, ty = (s->height + ts - 1) / ts;
-    f->ts = ts;
-    f->nt = tx * ty;
-    f->t = calloc((size_t)f->nt, sizeof *f->t);
-    f->queue = calloc((size_t)f->nt, sizeof *f->queue);
-    f->w = calloc(S_MAX_WORKERS, sizeof *f->w);
-    if (!f->t || !f->queue || !f->w)
+    const pf_farm_opts_t *o = f->o;
+    f->ts = o->tile_size > 0 ? o->tile_size : 32;
+    int maxw = o->max_workers > 0 ? o->max_workers : 1024;
+    if (pf_leases_init(&f->L, s->width, s->height, f->ts) != PF_OK ||
+        pf_registry_init(&f->reg, maxw, o->hello_rate) != PF_OK)
         return pf_error_set(err, PF_ENOMEM, NULL, 0, "out of memory");
-    for (int i = 0; i < f->nt; i++) {
-        s_tile *t = &f->t[i];
-        t->x0 = (uint32_t)((i % tx) * ts);
-        t->y0 = (uint32_t)((i / tx) * ts);
-        t->w = (uint32_t)(t->x0 + (uint32_t)ts <= (uint32_t)s->width ? ts : s->width - (int)t->x0);
-        t->h = (uint32_t)(t->y0 + (uint32_t)ts <= (uint32_t)s->height ? ts : s->height - (int)t->y0);
-        t->owner = -1;
-        f->queue[i] = i;
-    }
-    f->qlen = f->nt;
+    f->xfer = pf_xfer_new(maxw, o->blob_window);
+    f->pix = malloc((size_t)f->ts * (size_t)f->ts * 3 * sizeof *f->pix);
+    if (!f->xfer || !f->pix)
+        return pf_error_set(err, PF_ENOMEM, NULL, 0, "out of memory");
     return PF_OK;
 }
-
 /* CURVE on the socket: the coordinator's key, and a ZAP handler that admits
  * only the allowed worker keys. */
-static int s_setup_curve(s_farm *f, pf_error_t *err)
+static int s_setup_curve(pf_fm_t *f, pf_error_t *err)
 {
     const pf_farm_opts_t *opts = f->o;
     int one = 1;
@@ -582,15 +244,22 @@ static int s_setup_curve(s_farm *f, pf_error_t *err)
 
 /* The ROUTER socket, with CURVE and its ZAP handler when asked, bound; its
  * endpoint lands in f->endpoint. */
-static int s_open_socket(s_farm *f, pf_error_t *err)
+/* The ROUTER socket, with CURVE and its ZAP handler when asked, bound; its
+ * endpoint lands in f->endpoint. The queues are small (send_hwm messages a
+ * peer; blob chunks are windowed apart, see transfer.h) and no frame from a
+ * worker may be larger than a RESULT of one tile (libzmq drops the
+ * connection of a peer that sends one). */
+static int s_open_socket(pf_fm_t *f, pf_error_t *err)
 {
     const pf_farm_opts_t *opts = f->o;
     f->ctx = zmq_ctx_new();
     f->sock = f->ctx ? zmq_socket(f->ctx, ZMQ_ROUTER) : NULL;
     if (!f->sock)
         return pf_error_set(err, PF_EIO, NULL, 0, "cannot create a ZeroMQ socket: %s", zmq_strerror(zmq_errno()));
-    int one = 1, linger = 1000, hwm = 100000;
-    int64_t maxmsg = PF_PROTO_MAX_MESSAGE;
+    int one = 1, linger = 1000, hwm = opts->send_hwm > 0 ? opts->send_hwm : 256;
+    int64_t maxmsg = (int64_t)12 * f->ts * f->ts + 4096; /* RESULT: 3 floats a pixel, and room for the rest */
+    if (maxmsg > (int64_t)PF_PROTO_MAX_MESSAGE)
+        maxmsg = PF_PROTO_MAX_MESSAGE;
     zmq_setsockopt(f->sock, ZMQ_ROUTER_MANDATORY, &one, sizeof one);
     zmq_setsockopt(f->sock, ZMQ_LINGER, &linger, sizeof linger);
     zmq_setsockopt(f->sock, ZMQ_MAXMSGSIZE, &maxmsg, sizeof maxmsg);
@@ -615,7 +284,7 @@ static int s_open_socket(s_farm *f, pf_error_t *err)
 
 /* Local workers, started now so they connect during the photon pass. Their
  * pids go to f->pids, which are stopped on every path. */
-static int s_start_local_workers(s_farm *f, pf_error_t *err)
+static int s_start_local_workers(pf_fm_t *f, pf_error_t *err)
 {
     const pf_farm_opts_t *opts = f->o;
     if (opts->local_workers <= 0)
@@ -633,7 +302,7 @@ static int s_start_local_workers(s_farm *f, pf_error_t *err)
                                              : 1);
     char threads[16], name[64];
     snprintf(threads, sizeof threads, "%d", wt);
-    int nloc = opts->local_workers < S_MAX_LOCAL ? opts->local_workers : S_MAX_LOCAL;
+    int nloc = opts->local_workers < PF_FM_MAX_LOCAL ? opts->local_workers : PF_FM_MAX_LOCAL;
     for (int i = 0; i < nloc; i++) {
         snprintf(name, sizeof name, "local-%d", i + 1);
         /* Local workers report through the coordinator (joins, losses,
@@ -651,13 +320,14 @@ static int s_start_local_workers(s_farm *f, pf_error_t *err)
 }
 
 /* The photon pass runs beside the event loop. */
-static int s_start_photons(s_farm *f, const pf_scene_t *scene, const pf_settings_t *s, unsigned terms,
+static int s_start_photons(pf_fm_t *f, const pf_scene_t *scene, const pf_settings_t *s, unsigned terms,
                            pf_error_t *err)
 {
     f->ph.scene = scene;
     f->ph.settings = *s;
     f->ph.budget = f->o->budget;
     f->ph.terms = terms;
+    f->ph.job = f->job;
     if (pthread_create(&f->phtid, NULL, s_photon_thread, &f->ph) != 0)
         return pf_error_set(err, PF_ENOMEM, NULL, 0, "cannot start the photon pass thread");
     f->ph_started = 1;
@@ -666,7 +336,7 @@ static int s_start_photons(s_farm *f, const pf_scene_t *scene, const pf_settings
 
 /* The photon pass has finished: join it, and on success make the job
  * ready and send it to the workers waiting for it. */
-static int s_on_photons_done(s_farm *f, pf_error_t *err)
+static int s_on_photons_done(pf_fm_t *f, pf_error_t *err)
 {
     pf_farm_summary_t *sum = f->sum;
     pthread_join(f->phtid, NULL);
@@ -678,27 +348,28 @@ static int s_on_photons_done(s_farm *f, pf_error_t *err)
     sum->photons = f->ph.stats;
     sum->photon_s = pf_now() - f->t0;
     pf_progress_end(&f->bar);
-    pf_info("photon pass: %llu global + %llu caustic photons, %llu irradiance points; scene blob %zu bytes, "
-            "map blob %zu bytes (%.1f bytes per photon)",
+    pf_info("photon pass: %llu global + %llu caustic photons, %llu irradiance points; scene blob %llu bytes, "
+            "map blob %llu bytes (%.1f bytes per photon)",
             (unsigned long long)f->ph.stats.global_stored, (unsigned long long)f->ph.stats.caustic_stored,
-            (unsigned long long)f->ph.stats.irradiance_points, f->ph.scene_blob.len, f->ph.maps_blob.len,
-            (double)f->ph.maps_blob.len /
+            (unsigned long long)f->ph.stats.irradiance_points, (unsigned long long)f->ph.scene_size,
+            (unsigned long long)f->ph.maps_size, (double)f->ph.maps_size /
                 (double)(f->ph.stats.global_stored + f->ph.stats.caustic_stored + f->ph.stats.irradiance_points + 1));
     pf_settings_t s = f->ph.settings; /* as a time limit planned them */
-    f->jobmsg = (pf_msg_job_t){ f->ph.scene_hash, f->ph.scene_blob.len, f->ph.maps_hash, f->ph.maps_blob.len,
+    f->jobmsg = (pf_msg_job_t){ f->ph.scene_hash, f->ph.scene_size, f->ph.maps_hash, f->ph.maps_size,
                                 s, f->ph.terms, (uint32_t)f->ts };
+    pf_xfer_set_blobs(f->xfer, &f->ph.scene_fb, &f->ph.maps_fb);
     f->job_ready = 1;
     f->render_start = pf_now();
     pf_progress_begin(&f->bar, "render", f->o->show_progress);
-    for (int i = 0; i < f->nw; i++)
-        if (f->w[i].state == W_HELLO)
-            s_send_job(f, i);
+    for (int i = 0; i < f->reg.nw; i++)
+        if (f->reg.w[i].state == PF_W_HELLO)
+            pf_fm_send_job(f, i);
     return PF_OK;
 }
 
 /* Takes up to 256 queued messages off the socket without blocking, so the
  * housekeeping after each poll is never starved. */
-static void s_recv_burst(s_farm *f)
+static void s_recv_burst(pf_fm_t *f)
 {
     for (int burst = 0; burst < 256; burst++) {
         zmq_msg_t id, body;
@@ -710,17 +381,19 @@ static void s_recv_burst(s_farm *f)
         zmq_msg_init(&body);
         int more = zmq_msg_more(&id);
         if (!more || zmq_msg_recv(&body, f->sock, ZMQ_DONTWAIT) < 0) {
-            s_bad(f, "a peer", "empty message");
+            pf_fm_bad(f, "a peer", "empty message");
         } else {
             if (zmq_msg_more(&body)) { /* our protocol is one frame; drain and drop the rest */
-                s_bad(f, "a peer", "multi-frame message");
+                pf_fm_bad(f, "a peer", "multi-frame message");
                 while (zmq_msg_more(&body)) {
                     zmq_msg_close(&body);
                     zmq_msg_init(&body);
                     zmq_msg_recv(&body, f->sock, 0);
                 }
-            } else if (zmq_msg_size(&id) <= sizeof f->w[0].id) {
-                s_on_frame(f, zmq_msg_data(&id), zmq_msg_size(&id), zmq_msg_data(&body), zmq_msg_size(&body));
+            } else if (zmq_msg_size(&id) <= sizeof f->reg.w[0].id) {
+                /* With CURVE, the ZAP handler made the client's public key its User-Id. */
+                const char *key = zmq_msg_gets(&body, "User-Id");
+                pf_fm_on_frame(f, zmq_msg_data(&id), zmq_msg_size(&id), key, zmq_msg_data(&body), zmq_msg_size(&body));
             }
         }
         zmq_msg_close(&body);
@@ -729,16 +402,18 @@ static void s_recv_burst(s_farm *f)
 }
 
 /* Workers that have registered and not left or died. */
-static int s_count_alive(const s_farm *f)
+static int s_count_alive(const pf_fm_t *f)
 {
     int alive = 0;
-    for (int i = 0; i < f->nw; i++)
-        alive += f->w[i].state == W_READY || f->w[i].state == W_JOB_SENT || f->w[i].state == W_HELLO;
+    for (int i = 0; i < f->reg.nw; i++) {
+        int st = f->reg.w[i].state;
+        alive += st == PF_W_READY || st == PF_W_JOB_SENT || st == PF_W_HELLO;
+    }
     return alive;
 }
 
 /* A local worker that exits on its own is reported, not waited for. */
-static void s_reap_local_workers(s_farm *f)
+static void s_reap_local_workers(pf_fm_t *f)
 {
     for (int i = 0; i < f->npids; i++) {
         int status;
@@ -753,25 +428,27 @@ static void s_reap_local_workers(s_farm *f)
 
 /* The progress bar's note: workers alive, and the map transfers still under
  * way; without a bar, a log line every 5 s. */
-static void s_note_progress(s_farm *f, int alive)
+static void s_note_progress(pf_fm_t *f, int alive)
 {
     char note[256];
     int nn = snprintf(note, sizeof note, "workers %d", alive);
-    uint64_t blobs = f->ph.scene_blob.len + f->ph.maps_blob.len;
-    for (int i = 0; i < f->nw && nn < (int)sizeof note - 40; i++)
-        if (f->w[i].state == W_JOB_SENT && f->w[i].blob_sent > 0 && f->w[i].blob_sent < blobs)
-            nn += snprintf(note + nn, sizeof note - (size_t)nn, "  maps->%.12s %d%%", f->w[i].name,
-                           (int)(100.0 * (double)f->w[i].blob_sent / (double)blobs));
-    pf_progress_update_note(&f->bar, f->ndone, f->nt, note);
+    uint64_t blobs = f->ph.scene_size + f->ph.maps_size;
+    for (int i = 0; i < f->reg.nw && nn < (int)sizeof note - 40; i++) {
+        const pf_worker_t *w = &f->reg.w[i];
+        if (w->state == PF_W_JOB_SENT && w->blob_sent > 0 && w->blob_sent < blobs)
+            nn += snprintf(note + nn, sizeof note - (size_t)nn, "  maps->%.12s %d%%", w->name,
+                           (int)(100.0 * (double)w->blob_sent / (double)blobs));
+    }
+    pf_progress_update_note(&f->bar, f->L.ndone, f->L.nt, note);
     if (!f->bar.enabled && pf_now() - f->last_log > 5.0) {
         f->last_log = pf_now();
-        pf_info("render: %d/%d tiles, %d worker%s alive", f->ndone, f->nt, alive, alive == 1 ? "" : "s");
+        pf_info("render: %d/%d tiles, %d worker%s alive", f->L.ndone, f->L.nt, alive, alive == 1 ? "" : "s");
     }
 }
 
 /* The event loop: runs until every tile is done, *stop is set, the photon
  * pass fails, polling fails, or no worker has been alive for max_wait_s. */
-static int s_event_loop(s_farm *f, volatile int *stop, pf_error_t *err)
+static int s_event_loop(pf_fm_t *f, volatile int *stop, pf_error_t *err)
 {
     const pf_farm_opts_t *opts = f->o;
     int rc = PF_OK;
@@ -779,7 +456,7 @@ static int s_event_loop(s_farm *f, volatile int *stop, pf_error_t *err)
     f->render_start = 0.0;
     f->last_log = pf_now();
     f->no_worker_since = pf_now();
-    while (f->ndone < f->nt) {
+    while (f->L.ndone < f->L.nt) {
         if (stop && *stop) {
             rc = pf_error_set(err, PF_EINTERRUPTED, NULL, 0, "interrupted");
             break;
@@ -789,8 +466,12 @@ static int s_event_loop(s_farm *f, volatile int *stop, pf_error_t *err)
             if (rc != PF_OK)
                 break;
         }
+        /* Chunks waiting for a transfer window to open: look again soon. */
+        int waiting = 0;
+        for (int i = 0; i < f->reg.nw && !waiting; i++)
+            waiting = f->reg.w[i].state == PF_W_JOB_SENT && pf_xfer_waiting(f->xfer, i) > 0;
         zmq_pollitem_t it = { f->sock, 0, ZMQ_POLLIN, 0 };
-        int pr = zmq_poll(&it, 1, 50);
+        int pr = zmq_poll(&it, 1, waiting ? 10 : 50);
         if (pr < 0 && zmq_errno() != EINTR) {
             rc = pf_error_set(err, PF_EIO, NULL, 0, "poll failed: %s", zmq_strerror(zmq_errno()));
             break;
@@ -799,7 +480,7 @@ static int s_event_loop(s_farm *f, volatile int *stop, pf_error_t *err)
             s_recv_burst(f);
         s_tick(f);
         if (f->job_ready)
-            s_lease_all(f);
+            pf_fm_lease_all(f);
         int alive = s_count_alive(f);
         if (alive)
             f->no_worker_since = pf_now();
@@ -820,42 +501,51 @@ static int s_event_loop(s_farm *f, volatile int *stop, pf_error_t *err)
 
 /* Job over: tell everyone, then let local workers go. Workers declared
  * dead are told too: one that was only stopped (SIGSTOP) may be back. */
-static void s_end_job(s_farm *f, int rc)
+static void s_end_job(pf_fm_t *f, int rc)
 {
-    for (int i = 0; i < f->nw; i++)
-        if (f->w[i].state != W_FREE) {
+    for (int i = 0; i < f->reg.nw; i++)
+        if (f->reg.w[i].state != PF_W_FREE) {
             pf_msg_t m = { .type = PF_MSG_JOB_END };
-            s_send(f, i, &m);
+            pf_fm_send(f, i, &m);
             pf_msg_t b = { .type = PF_MSG_BYE };
-            snprintf(b.u.bye.reason, sizeof b.u.bye.reason, "%s", rc == PF_OK ? "job complete" : "coordinator stopping");
-            s_send(f, i, &b);
+            snprintf(b.u.bye.reason, sizeof b.u.bye.reason, "%s",
+                     rc == PF_OK ? "job complete" : "coordinator stopping");
+            pf_fm_send(f, i, &b);
         }
 }
 
 /* Tiles per worker into the summary: one line per name, also for a worker
- * that registered twice; at most 64 names. */
-static void s_sum_per_worker(s_farm *f)
+ * that registered twice; at most 64 names. And the counts the registry
+ * and the leases kept. */
+static void s_sum_up(pf_fm_t *f)
 {
     pf_farm_summary_t *sum = f->sum;
-    for (int i = 0; i < f->nw; i++) {
-        if (!f->w[i].tiles)
+    sum->reissued = f->L.reissued;
+    sum->duplicates = f->L.duplicates;
+    sum->hellos_dropped = f->reg.hellos_dropped;
+    sum->slots_reused = f->reg.reused;
+    for (int i = 0; i < f->reg.nw; i++) {
+        const pf_worker_t *w = &f->reg.w[i];
+        if (!w->tiles)
             continue;
         int k = 0;
-        while (k < sum->nper_worker && strcmp(sum->per_worker[k].name, f->w[i].name) != 0)
+        while (k < sum->nper_worker && strcmp(sum->per_worker[k].name, w->name) != 0)
             k++;
         if (k == sum->nper_worker) {
             if (k == 64)
                 continue;
-            snprintf(sum->per_worker[k].name, sizeof sum->per_worker[k].name, "%s", f->w[i].name);
+            snprintf(sum->per_worker[k].name, sizeof sum->per_worker[k].name, "%s", w->name);
             sum->per_worker[k].tiles = 0;
             sum->nper_worker++;
         }
-        sum->per_worker[k].tiles += f->w[i].tiles;
+        sum->per_worker[k].tiles += w->tiles;
     }
 }
 
-/* Stops and frees whatever the steps started, on every path. */
-static void s_free(s_farm *f)
+/* Stops and frees whatever the steps started, on every path. The blob
+ * server goes after the context: until zmq_ctx_term returns, libzmq may
+ * still hold chunk frames that point into its blobs. */
+static void s_free(pf_fm_t *f)
 {
     if (f->ph_started) {
         pthread_join(f->phtid, NULL); /* the photon pass cannot be cancelled midway; it ends on its own */
@@ -868,13 +558,14 @@ static void s_free(s_farm *f)
         f->sum->refused += (uint64_t)pf_zap_stop(&f->zap);
     if (f->ctx)
         zmq_ctx_term(f->ctx);
+    pf_xfer_destroy(&f->xfer);
     pf_frame_close(&f->ph.frame);
-    pf_buf_free(&f->ph.scene_blob);
-    pf_buf_free(&f->ph.maps_blob);
+    pf_framed_blob_free(&f->ph.scene_fb);
+    pf_framed_blob_free(&f->ph.maps_fb);
     pf_buf_free(&f->out);
-    free(f->t);
-    free(f->queue);
-    free(f->w);
+    free(f->pix);
+    pf_leases_free(&f->L);
+    pf_registry_free(&f->reg);
 }
 
 int pf_farm_render(const pf_scene_t *scene, const pf_settings_t *settings, unsigned terms, const pf_farm_opts_t *opts,
@@ -882,7 +573,7 @@ int pf_farm_render(const pf_scene_t *scene, const pf_settings_t *settings, unsig
 {
     memset(sum, 0, sizeof *sum);
     double t0 = pf_now();
-    s_farm f;
+    pf_fm_t f;
     memset(&f, 0, sizeof f);
     f.o = opts;
     f.sum = sum;
@@ -908,7 +599,7 @@ int pf_farm_render(const pf_scene_t *scene, const pf_settings_t *settings, unsig
     if (rc == PF_OK) {
         rc = s_event_loop(&f, stop, err);
         s_end_job(&f, rc);
-        s_sum_per_worker(&f);
+        s_sum_up(&f);
     }
     s_free(&f);
     if (rc != PF_OK) {
@@ -929,7 +620,15 @@ void pf_farm_summary_log(const pf_farm_summary_t *s)
             (unsigned long long)s->results, s->bytes_sent / 1e6, s->blob_bytes / 1e6, (unsigned long long)s->reissued,
             (unsigned long long)s->duplicates, (unsigned long long)s->malformed, s->workers_seen,
             s->workers_seen == 1 ? "" : "s", s->workers_lost, (unsigned long long)s->refused);
+    pf_info("summary: hostile peers: %llu strikes, %llu evicted, %llu frames from evicted peers dropped, "
+            "%llu HELLOs dropped over the rate limit, %llu HELLOs blocked, %llu blob requests ignored, "
+            "%llu results refused, %llu leases expired, %llu stalls, %llu leases taken over, %llu slots reused",
+            (unsigned long long)s->strikes, (unsigned long long)s->evicted, (unsigned long long)s->evicted_frames,
+            (unsigned long long)s->hellos_dropped, (unsigned long long)s->blocked, (unsigned long long)s->blob_ignored,
+            (unsigned long long)s->results_refused, (unsigned long long)s->expired, (unsigned long long)s->stalls,
+            (unsigned long long)s->takeovers, (unsigned long long)s->slots_reused);
     for (int i = 0; i < s->nper_worker; i++)
         pf_info("summary: worker %s rendered %llu tiles", s->per_worker[i].name,
                 (unsigned long long)s->per_worker[i].tiles);
 }
+

@@ -23,13 +23,28 @@ typedef struct pf_farm_opts {
     int tile_size;            /* pixels per tile side (default 32) */
     int heartbeat_ms;         /* default 1000 */
     int dead_after;           /* heartbeat intervals of silence before a worker is dead (default 4) */
-    double lease_timeout_s;   /* a lease older than this returns its tile to the queue (default 60) */
-    double watchdog_s;        /* a worker holding tiles whose progress counter stalls this long is stuck (default 30) */
+    double lease_timeout_s;   /* a lease older than this returns its tile to the queue and strikes its holder
+                                 (default 120) */
+    double watchdog_s;        /* a worker holding tiles with no RESULT for this long (or 8 typical tile times if
+                                 longer) is stuck: its tiles are re-issued, it gets none until a RESULT (default 30) */
     double max_wait_s;        /* give up when no worker has been ready for this long (0: wait forever) */
     const char *curve_secret; /* coordinator key file (public + secret), NULL: no CURVE */
     const char *curve_allow;  /* file of allowed worker public keys (required with curve_secret) */
     int show_progress;
     pf_budget_t *budget;      /* a time limit: photons and spp are planned on the coordinator (NULL: none) */
+    /* Budgets against hostile peers (docs/farm.md, "Hostile peers"). */
+    int max_workers;          /* registry slots; dead ones are reused (default 1024) */
+    double hello_rate;        /* HELLOs served per second, all peers together; the excess is dropped (default 100;
+                                 0: no limit) */
+    int max_strikes;          /* strikes (malformed or out-of-turn messages, expired leases, stalls) before a
+                                 worker is evicted and blocked for the rest of the job (default 8; 0: never) */
+    int blob_window;          /* blob chunks in flight per worker, whatever its BLOB_REQ asks (default 8) */
+    int send_hwm;             /* ZMQ_SNDHWM and ZMQ_RCVHWM, in messages per peer (default 256) */
+    int credit_per_thread;    /* tiles a worker may hold per thread it announced (default 2); also at most its fair
+                                 share of the tiles left, and 2 + the results it has returned */
+    double takeover_factor;   /* with the queue empty, a lease older than this many typical tile times (and
+                                 takeover_min_s) goes to an idle worker that never held it (default 4; 0: never) */
+    double takeover_min_s;    /* (default 2) */
 } pf_farm_opts_t;
 
 void pf_farm_opts_default(pf_farm_opts_t *o);
@@ -45,6 +60,9 @@ typedef struct pf_farm_summary {
     uint64_t bytes_sent, blob_bytes, results;
     uint64_t reissued, duplicates, malformed, refused;
     int workers_seen, workers_lost;
+    /* Hostile peers: what was refused, dropped, evicted. */
+    uint64_t strikes, evicted, evicted_frames, hellos_dropped, blocked, blob_ignored, results_refused;
+    uint64_t expired, stalls, takeovers, slots_reused;
     pf_farm_worker_stat_t per_worker[64];
     int nper_worker;
     size_t bad_pixels;

@@ -77,7 +77,10 @@ static void s_usage(FILE *f)
             "      --curve-allow FILE   the public keys of the workers admitted, one per line\n"
             "      --tile N             tile size in pixels (32)\n"
             "      --heartbeat-ms MS    heartbeat interval (1000); a worker silent for 4 is dead\n"
-            "      --watchdog S         a worker whose progress stalls S seconds is stuck (30)\n"
+            "      --watchdog S         a worker holding tiles that returns no RESULT for S seconds is stuck (30)\n"
+            "      --lease-timeout S    a tile not returned S seconds after its lease goes to another worker (120)\n"
+            "      --max-strikes N      evict a worker after N offences: malformed, out-of-turn or refused\n"
+            "                           messages, expired leases, stalls (8; 0: never)\n"
             "      --max-wait S         give up when no worker is connected for S seconds (0: never)\n"
             "      --worker-exe PATH    the worker program for --workers (default: beside photonfarm)\n"
             "\n"
@@ -195,6 +198,7 @@ enum {
     OPT_HDR = 256, OPT_SIZE, OPT_SPP, OPT_PHOTONS, OPT_CPHOTONS, OPT_GATHER, OPT_GFILTER, OPT_LSAMPLES, OPT_GK, OPT_CK, OPT_CR,
     OPT_DEPTH, OPT_THREADS, OPT_SEED, OPT_EXPOSURE, OPT_TERMS, OPT_WORKERS, OPT_BIND, OPT_MINW, OPT_CSECRET,
     OPT_CALLOW, OPT_TILE, OPT_HB, OPT_WATCHDOG, OPT_MAXWAIT, OPT_WEXE, OPT_TLIMIT, OPT_QUALITY, OPT_STRICT,
+    OPT_LEASE, OPT_STRIKES,
 };
 
 static volatile int s_interrupted;
@@ -222,6 +226,7 @@ static const struct option s_render_opts[] = {
     { "watchdog", required_argument, 0, OPT_WATCHDOG }, { "max-wait", required_argument, 0, OPT_MAXWAIT },
     { "worker-exe", required_argument, 0, OPT_WEXE }, { "time-limit", required_argument, 0, OPT_TLIMIT },
     { "quality", required_argument, 0, OPT_QUALITY }, { "strict", no_argument, 0, OPT_STRICT },
+    { "lease-timeout", required_argument, 0, OPT_LEASE }, { "max-strikes", required_argument, 0, OPT_STRIKES },
     { 0, 0, 0, 0 },
 };
 
@@ -311,6 +316,8 @@ static int s_parse_render_args(int argc, char **argv, s_render_args *a)
         case OPT_HB: bad = s_parse_int(optarg, 10, 60000, &farm->heartbeat_ms); break;
         case OPT_WATCHDOG: bad = s_parse_float(optarg, &fval) || fval <= 0; farm->watchdog_s = fval; break;
         case OPT_MAXWAIT: bad = s_parse_float(optarg, &fval) || fval < 0; farm->max_wait_s = fval; break;
+        case OPT_LEASE: bad = s_parse_float(optarg, &fval) || fval <= 0 || fval > 1e6; farm->lease_timeout_s = fval; break;
+        case OPT_STRIKES: bad = s_parse_int(optarg, 0, 1000000, &farm->max_strikes); break;
         case OPT_WEXE: farm->worker_exe = optarg; break;
         case OPT_TLIMIT: bad = s_parse_float(optarg, &a->time_limit) || a->time_limit <= 0 || a->time_limit > 1e7; break;
         case OPT_QUALITY: bad = (a->quality = s_find_quality(optarg)) == NULL; break;

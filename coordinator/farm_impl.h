@@ -1,0 +1,103 @@
+/* farm_impl.h: what the farm's two files share (not a public interface):
+ * farm.c (the photon thread, the event loop, housekeeping and the job's
+ * steps) and farm_peers.c (the conversation with workers: sending, leasing,
+ * receiving, strikes and eviction). One thread, the event loop's, calls
+ * every pf_fm_ function. */
+#ifndef PF_FARM_IMPL_H
+#define PF_FARM_IMPL_H
+
+#include <pthread.h>
+#include <stdint.h>
+#include <sys/types.h>
+
+#include "coordinator/budget.h"
+#include "coordinator/leases.h"
+#include "coordinator/progress.h"
+#include "coordinator/registry.h"
+#include "coordinator/transfer.h"
+#include "coordinator/zap.h"
+#include "image/image.h"
+#include "photon/trace.h"
+#include "proto/messages.h"
+#include "render/frame.h"
+
+#define PF_FM_MAX_LOCAL 256
+
+/* The photon pass, run in its own thread. */
+typedef struct pf_fm_photons {
+    const pf_scene_t *scene;
+    pf_settings_t settings; /* a time limit changes them here, before the job goes out */
+    pf_budget_t *budget;
+    unsigned terms;
+    uint64_t job;
+    pf_frame_t frame; /* the scene's accel and lights, then the maps */
+    pf_photon_stats_t stats;
+    pf_framed_blob_t scene_fb, maps_fb; /* the blobs, cut into chunk frames */
+    uint64_t scene_hash, maps_hash, scene_size, maps_size;
+    int rc;
+    volatile int done;
+    pf_error_t err;
+} pf_fm_photons_t;
+
+typedef struct pf_fm_limit {
+    double tokens, at;
+    unsigned long held;
+} pf_fm_limit_t;
+
+typedef struct pf_fm {
+    const struct pf_farm_opts *o; /* farm.h (not included here: farm.c includes this file) */
+    void *ctx, *sock;
+    uint64_t job;
+    pf_registry_t reg;
+    pf_leases_t L;
+    pf_xfer_t *xfer;
+    pf_fm_photons_t ph;
+    pf_msg_job_t jobmsg;
+    int job_ready;
+    pf_image_t *img;
+    pf_buf_t out;
+    float *pix; /* one tile's pixels, decoded from a RESULT */
+    struct pf_farm_summary *sum;
+    pf_fm_limit_t bad_log, strike_log, hello_log, peer_log; /* peer_log: joins, leaves, deaths */
+    int leasing; /* tiles have been leased: --min-workers was met once */
+    /* What pf_farm_render's steps share: the job's clock, what it started
+     * (and must stop), and the event loop's clocks. */
+    double t0;          /* when the job began */
+    int ts;             /* tile side in pixels */
+    char endpoint[256]; /* where the socket listens, for the local workers */
+    pf_zap_t *zap;
+    pid_t pids[PF_FM_MAX_LOCAL];
+    int npids;
+    pthread_t phtid;
+    int ph_started; /* the photon thread runs and has not been joined */
+    pf_progress_t bar;
+    double render_start, last_log, no_worker_since;
+} pf_fm_t;
+
+/* farm_peers.c */
+
+/* A log line that may come once per message of a flood: 1 when it may be
+ * printed (at most rate lines a second, a burst of twice that). */
+int pf_fm_may_log(pf_fm_limit_t *l, double rate);
+/* A malformed message from peer (a phrase: "worker NAME"), counted and
+ * logged (rate-limited). */
+void pf_fm_bad(pf_fm_t *f, const char *peer, const char *why);
+/* Sends m to worker wi (the job id filled in). 0, or -1: its queue is full,
+ * or it is gone (then it is declared dead). */
+int pf_fm_send(pf_fm_t *f, int wi, pf_msg_t *m);
+/* Sends the JOB; the worker is JOB_SENT when it went out. */
+void pf_fm_send_job(pf_fm_t *f, int wi);
+/* Revokes a worker's leases, logged with why (NULL: only when it held any). */
+void pf_fm_release_worker(pf_fm_t *f, int wi, const char *why);
+/* The worker is dead (silent or disconnected): its leases are revoked. */
+void pf_fm_declare_dead(pf_fm_t *f, int wi, const char *why);
+/* A strike against a live worker, with why; past max_strikes it is evicted. */
+void pf_fm_strike(pf_fm_t *f, int wi, const char *why);
+/* Leases tiles to every worker with room (once min_workers were ready). */
+void pf_fm_lease_all(pf_fm_t *f);
+/* Hands libzmq what worker wi's blob transfer window lets through. */
+void pf_fm_pump(pf_fm_t *f, int wi);
+/* One frame from routing identity id (key: its CURVE key, or NULL). */
+void pf_fm_on_frame(pf_fm_t *f, const uint8_t *id, size_t idlen, const char *key, const uint8_t *data, size_t len);
+
+#endif

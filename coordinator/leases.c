@@ -1,0 +1,255 @@
+/* leases.c: tiles, the queue and leases of one farm job; see leases.h.
+ *
+ * Owns the tile table and the queue (a ring of tile indices; a tile taken
+ * from the middle shifts the ones before it). Called by the farm's event
+ * loop only (one thread). */
+#include "coordinator/leases.h"
+
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "base/status.h"
+
+int pf_leases_init(pf_leases_t *L, int width, int height, int ts)
+{
+    memset(L, 0, sizeof *L);
+    int tx = (width + ts - 1) / ts, ty = (height + ts - 1) / ts;
+    L->nt = tx * ty;
+    L->t = calloc((size_t)L->nt, sizeof *L->t);
+    L->queue = calloc((size_t)L->nt, sizeof *L->queue);
+    if (!L->t || !L->queue) {
+        pf_leases_free(L);
+        return PF_ENOMEM;
+    }
+    for (int i = 0; i < L->nt; i++) {
+        pf_tile_t *t = &L->t[i];
+        t->x0 = (uint32_t)((i % tx) * ts);
+        t->y0 = (uint32_t)((i / tx) * ts);
+        t->w = (uint32_t)(t->x0 + (uint32_t)ts <= (uint32_t)width ? ts : width - (int)t->x0);
+        t->h = (uint32_t)(t->y0 + (uint32_t)ts <= (uint32_t)height ? ts : height - (int)t->y0);
+        t->owner = -1;
+        L->queue[i] = i;
+    }
+    L->qlen = L->nt;
+    return PF_OK;
+}
+
+void pf_leases_free(pf_leases_t *L)
+{
+    free(L->t);
+    free(L->queue);
+    L->t = NULL;
+    L->queue = NULL;
+}
+
+/* ---- the queue ---- */
+
+static int s_at(const pf_leases_t *L, int pos)
+{
+    return L->queue[(L->qhead + pos) % L->nt];
+}
+
+/* Takes the tile at queue position pos out of the queue. */
+static int s_take(pf_leases_t *L, int pos)
+{
+    int ti = s_at(L, pos);
+    for (int j = pos; j > 0; j--)
+        L->queue[(L->qhead + j) % L->nt] = L->queue[(L->qhead + j - 1) % L->nt];
+    L->qhead = (L->qhead + 1) % L->nt;
+    L->qlen--;
+    return ti;
+}
+
+static void s_push_front(pf_leases_t *L, int ti)
+{
+    L->qhead = (L->qhead + L->nt - 1) % L->nt;
+    L->queue[L->qhead] = ti;
+    L->qlen++;
+}
+
+/* The holder of t's current lease holds one tile less. */
+static void s_drop_owner(pf_registry_t *r, pf_tile_t *t)
+{
+    if (t->owner >= 0 && t->owner < r->nw && r->w[t->owner].uid == t->owner_uid && r->w[t->owner].held > 0)
+        r->w[t->owner].held--;
+    t->owner = -1;
+    t->owner_uid = 0;
+}
+
+/* ---- leasing ---- */
+
+int pf_leases_was_lessee(const pf_tile_t *t, uint32_t uid)
+{
+    for (int k = 0; k < t->nlessees; k++)
+        if (t->lessees[k].uid == uid)
+            return 1;
+    return 0;
+}
+
+/* Is there a ready worker other than wi, not stuck, that never held t? */
+static int s_other_taker(const pf_registry_t *r, const pf_tile_t *t, int wi)
+{
+    for (int i = 0; i < r->nw; i++)
+        if (i != wi && r->w[i].state == PF_W_READY && !r->w[i].stuck && !pf_leases_was_lessee(t, r->w[i].uid))
+            return 1;
+    return 0;
+}
+
+int pf_leases_pick(const pf_leases_t *L, const pf_registry_t *r, int wi)
+{
+    uint32_t uid = r->w[wi].uid;
+    for (int k = 0; k < L->qlen; k++)
+        if (!pf_leases_was_lessee(&L->t[s_at(L, k)], uid))
+            return k;
+    for (int k = 0; k < L->qlen; k++)
+        if (!s_other_taker(r, &L->t[s_at(L, k)], wi))
+            return k;
+    return -1;
+}
+
+int pf_leases_grant(pf_leases_t *L, pf_registry_t *r, int pos, int wi, double now)
+{
+    int ti = s_take(L, pos);
+    pf_tile_t *t = &L->t[ti];
+    pf_worker_t *w = &r->w[wi];
+    t->state = PF_T_LEASED;
+    t->owner = wi;
+    t->owner_uid = w->uid;
+    t->leased_at = now;
+    if (t->nlessees == PF_LEASES_LESSEES) {
+        memmove(t->lessees, t->lessees + 1, (PF_LEASES_LESSEES - 1) * sizeof *t->lessees);
+        t->nlessees--;
+    }
+    t->lessees[t->nlessees++] = (pf_lessee_t){ w->uid, t->attempt, now };
+    if (w->held++ == 0)
+        w->result_at = now; /* the stall clock runs while it holds tiles */
+    return ti;
+}
+
+void pf_leases_ungrant(pf_leases_t *L, pf_registry_t *r, int ti)
+{
+    pf_tile_t *t = &L->t[ti];
+    if (t->state != PF_T_LEASED)
+        return;
+    s_drop_owner(r, t);
+    t->nlessees--; /* the lease just granted is the last one */
+    t->state = PF_T_QUEUED;
+    s_push_front(L, ti);
+}
+
+void pf_leases_revoke(pf_leases_t *L, pf_registry_t *r, int ti)
+{
+    pf_tile_t *t = &L->t[ti];
+    if (t->state != PF_T_LEASED)
+        return;
+    s_drop_owner(r, t);
+    t->state = PF_T_QUEUED;
+    t->attempt++;
+    s_push_front(L, ti);
+    L->reissued++;
+}
+
+int pf_leases_release(pf_leases_t *L, pf_registry_t *r, int wi)
+{
+    int n = 0;
+    uint32_t uid = r->w[wi].uid;
+    for (int i = 0; i < L->nt; i++)
+        if (L->t[i].state == PF_T_LEASED && L->t[i].owner == wi && L->t[i].owner_uid == uid) {
+            pf_leases_revoke(L, r, i);
+            n++;
+        }
+    r->w[wi].held = 0;
+    return n;
+}
+
+/* ---- results ---- */
+
+int pf_leases_check(pf_leases_t *L, const pf_registry_t *r, int wi, const pf_msg_result_t *res, char *why,
+                    size_t why_len)
+{
+    if (res->tile >= (uint32_t)L->nt) {
+        snprintf(why, why_len, "RESULT for tile %u, which does not exist (%d tiles)", res->tile, L->nt);
+        return PF_RESULT_REFUSED;
+    }
+    const pf_tile_t *t = &L->t[res->tile];
+    if (res->x0 != t->x0 || res->y0 != t->y0 || res->w != t->w || res->h != t->h) {
+        snprintf(why, why_len, "RESULT for tile %u with the rectangle %ux%u at (%u, %u), not its own", res->tile,
+                 res->w, res->h, res->x0, res->y0);
+        return PF_RESULT_REFUSED;
+    }
+    uint32_t uid = r->w[wi].uid;
+    for (int k = 0; k < t->nlessees; k++)
+        if (t->lessees[k].uid == uid && t->lessees[k].attempt == res->attempt) {
+            if (t->state != PF_T_DONE)
+                return PF_RESULT_NEW;
+            L->duplicates++;
+            return PF_RESULT_DUPLICATE;
+        }
+    int n = snprintf(why, why_len, "RESULT for tile %u attempt %u, which was never leased to it (id %u); lessees:",
+                     res->tile, res->attempt, uid);
+    for (int k = 0; k < t->nlessees && n > 0 && (size_t)n < why_len; k++)
+        n += snprintf(why + n, why_len - (size_t)n, " id %u attempt %u", t->lessees[k].uid, t->lessees[k].attempt);
+    if (t->nlessees == 0 && n > 0 && (size_t)n < why_len)
+        snprintf(why + n, why_len - (size_t)n, " none");
+    return PF_RESULT_REFUSED;
+}
+
+void pf_leases_complete(pf_leases_t *L, pf_registry_t *r, int wi, const pf_msg_result_t *res, double now)
+{
+    int ti = (int)res->tile;
+    pf_tile_t *t = &L->t[ti];
+    if (t->state == PF_T_DONE)
+        return;
+    if (t->state == PF_T_LEASED) {
+        s_drop_owner(r, t);
+    } else { /* re-issued and waiting in the queue: this result makes it done, take it out */
+        for (int k = 0; k < L->qlen; k++)
+            if (s_at(L, k) == ti) {
+                s_take(L, k);
+                break;
+            }
+    }
+    t->state = PF_T_DONE;
+    L->ndone++;
+    uint32_t uid = r->w[wi].uid;
+    for (int k = 0; k < t->nlessees; k++)
+        if (t->lessees[k].uid == uid && t->lessees[k].attempt == res->attempt) {
+            L->times[L->itime] = now - t->lessees[k].at;
+            L->itime = (L->itime + 1) % PF_LEASES_TIMES;
+            if (L->ntimes < PF_LEASES_TIMES)
+                L->ntimes++;
+            break;
+        }
+}
+
+/* ---- the end of the job ---- */
+
+int pf_leases_oldest(const pf_leases_t *L, double now, double min_age)
+{
+    int best = -1;
+    for (int i = 0; i < L->nt; i++) {
+        const pf_tile_t *t = &L->t[i];
+        if (t->state != PF_T_LEASED || now - t->leased_at <= min_age)
+            continue;
+        if (best < 0 || t->leased_at < L->t[best].leased_at)
+            best = i;
+    }
+    return best;
+}
+
+double pf_leases_typical_s(const pf_leases_t *L)
+{
+    double v[PF_LEASES_TIMES];
+    int n = L->ntimes;
+    if (n == 0)
+        return 0.0;
+    memcpy(v, L->times, (size_t)n * sizeof *v);
+    for (int i = 1; i < n; i++) /* insertion sort: at most PF_LEASES_TIMES values */
+        for (int j = i; j > 0 && v[j - 1] > v[j]; j--) {
+            double x = v[j];
+            v[j] = v[j - 1];
+            v[j - 1] = x;
+        }
+    return v[n / 2];
+}
