@@ -30,6 +30,7 @@ struct pf_lights {
     s_entry *entries;
     double *cdf; /* n + 1 entries, cdf[n] = 1 */
     size_t n;
+    size_t narea; /* entries [0, narea) are the area lights, sorted by (mesh, tri) */
     double power;
 };
 
@@ -109,6 +110,7 @@ pf_lights_t *pf_lights_build(const pf_scene_t *scene)
             acc += p;
         }
     }
+    self->narea = self->n;
     for (size_t l = 0; l < scene->nlights; l++) {
         double p = s_light_power(&scene->lights[l]);
         if (!(p > 0.0))
@@ -194,6 +196,7 @@ int pf_lights_sample_direct(const pf_lights_t *self, const pf_scene_t *scene, pf
         out->wi = wi;
         out->dist = dist;
         out->weight = pf_scale(le, cos_l / (d2 * pdf_area));
+        out->pdf = pdf_area * d2 / cos_l;
         return 1;
     }
     const pf_light_t *l = &scene->lights[e->light];
@@ -209,7 +212,41 @@ int pf_lights_sample_direct(const pf_lights_t *self, const pf_scene_t *scene, pf
     out->wi = wi;
     out->dist = dist;
     out->weight = pf_scale(l->intensity, falloff / (d2 * (float)pmf));
+    out->pdf = 0.0f;
     return 1;
+}
+
+float pf_lights_pdf(const pf_lights_t *self, const pf_scene_t *scene, pf_vec3 x, uint32_t geom, uint32_t prim,
+                    pf_vec3 p)
+{
+    size_t lo = 0, hi = self->narea;
+    while (lo < hi) { /* the first area entry >= (geom, prim) */
+        size_t mid = (lo + hi) / 2;
+        const s_entry *e = &self->entries[mid];
+        if (e->mesh < geom || (e->mesh == geom && e->tri < prim))
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    if (lo == self->narea || self->entries[lo].mesh != geom || self->entries[lo].tri != prim)
+        return 0.0f;
+    const s_entry *e = &self->entries[lo];
+    /* the normal exactly as s_tri_point makes it */
+    const pf_mesh_t *mesh = &scene->meshes[e->mesh];
+    const uint32_t *v = &mesh->idx[3 * e->tri];
+    pf_vec3 p0 = mesh->pos[v[0]], p1 = mesh->pos[v[1]], p2 = mesh->pos[v[2]];
+    pf_vec3 n = pf_norm(pf_cross(pf_sub(p1, p0), pf_sub(p2, p0)));
+    if (mesh->nrm)
+        n = pf_face_forward(n, pf_add(pf_add(mesh->nrm[v[0]], mesh->nrm[v[1]]), mesh->nrm[v[2]]));
+    pf_vec3 d = pf_sub(p, x);
+    float d2 = pf_len2(d);
+    if (!(d2 > 0.0f))
+        return 0.0f;
+    float cos_l = -pf_dot(d, n) / sqrtf(d2);
+    if (cos_l <= 0.0f)
+        return 0.0f;
+    float pmf = (float)(self->cdf[lo + 1] - self->cdf[lo]);
+    return pmf / e->area * d2 / cos_l;
 }
 
 int pf_lights_emit(const pf_lights_t *self, const pf_scene_t *scene, const float u[5], pf_emission_t *out)

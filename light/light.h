@@ -27,6 +27,7 @@ typedef struct pf_light_conn {
     pf_vec3 wi;      /* unit direction from the receiver to the light point */
     float dist;      /* distance to the light point */
     pf_vec3 weight;  /* Le cos_l / (d^2 pdf), i.e. incident radiance over pdf */
+    float pdf;       /* the solid-angle pdf of wi (area lights), 0 for point and spot lights (a delta) */
 } pf_light_conn_t;
 
 /* Samples one emitter by power and a point on it, as seen from x. Returns 0
@@ -34,6 +35,14 @@ typedef struct pf_light_conn {
  * else 1. Uses u[0..2]. */
 int pf_lights_sample_direct(const pf_lights_t *self, const pf_scene_t *scene, pf_vec3 x, const float u[3],
                             pf_light_conn_t *out);
+
+/* The solid-angle pdf with which pf_lights_sample_direct, called at x,
+ * returns the point p on triangle prim of mesh geom (a hit's geom and
+ * prim): the emitter's probability times its area pdf, converted to solid
+ * angle. 0 when that triangle is no light in the table (or a sphere), or x
+ * sees its back. */
+float pf_lights_pdf(const pf_lights_t *self, const pf_scene_t *scene, pf_vec3 x, uint32_t geom, uint32_t prim,
+                    pf_vec3 p);
 
 /* An emitted photon: origin, direction, and flux scaled by the number of
  * photons (divide by the emitted count). perr bounds the origin's error and
@@ -55,8 +64,8 @@ typedef struct pf_target {
     float radius;
 } pf_target_t;
 
-/* Bounding spheres of the scene's mirror and glass geometry: one per mesh
- * (over its specular triangles) and one per specular sphere. *out is
+/* Bounding spheres of the scene's mirror, glass and conductor geometry: one
+ * per mesh (over its specular triangles) and one per specular sphere. *out is
  * malloc'd (NULL when there are none). Returns the count, or PF_ENOMEM. */
 int pf_specular_targets(const pf_scene_t *scene, pf_target_t **out);
 

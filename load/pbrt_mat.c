@@ -11,8 +11,11 @@
  *                       kd = (1 - F0)(1 - Fdr) R / (1 - Fdr R), Fdr the
  *                       coat's internal diffuse reflectance (Egan and
  *                       Hilgeman's fit); warned as approximated
- *   conductor           MIRROR ks = ((n-1)^2 + k^2) / ((n+1)^2 + k^2) per
- *                       channel, or "reflectance"; rough ones warned
+ *   conductor           CONDUCTOR eta, k per channel (pbrt's spectra at the
+ *                       RGB primaries), or "reflectance" r: eta 1,
+ *                       k = 2 sqrt(r) / sqrt(1 - r); alpha from the
+ *                       roughness (below); anisotropic u != v: their mean,
+ *                       warned
  *   coatedconductor     MIRROR of its conductor; warned
  *   dielectric          GLASS ior = eta (a named glass: its index); rough
  *                       ones warned
@@ -142,7 +145,10 @@ static void s_what(const pf_pbrt_t *c, const pf_pbrt_mat_t *m, char *out, size_t
 
 /* pbrt's alpha from roughness, uroughness, vroughness and remaproughness:
  * the larger of the two. */
-static int s_alpha(pf_pbrt_t *c, pf_pbrt_params_t *ps, const char *prefix, const char *what, double *alpha)
+/* The two alphas of "roughness" / "uroughness" / "vroughness" (remapped by
+ * "remaproughness", default true: alpha = sqrt(roughness)). */
+static int s_alpha_uv(pf_pbrt_t *c, pf_pbrt_params_t *ps, const char *prefix, const char *what, double *au,
+                      double *av)
 {
     char n[3][64];
     const char *base[3] = { "roughness", "uroughness", "vroughness" };
@@ -161,8 +167,18 @@ static int s_alpha(pf_pbrt_t *c, pf_pbrt_params_t *ps, const char *prefix, const
         return rc;
     u = fmax(u, 0.0);
     v = fmax(v, 0.0);
-    *alpha = remap ? sqrt(fmax(u, v)) : fmax(u, v);
+    *au = remap ? sqrt(u) : u;
+    *av = remap ? sqrt(v) : v;
     return PF_OK;
+}
+
+/* The larger alpha (for the approximations that only ask how rough). */
+static int s_alpha(pf_pbrt_t *c, pf_pbrt_params_t *ps, const char *prefix, const char *what, double *alpha)
+{
+    double u, v;
+    int rc = s_alpha_uv(c, ps, prefix, what, &u, &v);
+    *alpha = fmax(u, v);
+    return rc;
 }
 
 /* Index of refraction from "eta" (float, spectrum or float texture). */
@@ -273,25 +289,34 @@ static int s_conductor_f0(pf_pbrt_t *c, pf_pbrt_mat_t *m, const char *prefix, co
         return rc;
     if (found) {
         m->m.ks = refl;
+        m->m.eta = pf_v3s(1.0f);
+        m->m.k = pf_v3(pf_conductor_k_of_reflectance(refl.x), pf_conductor_k_of_reflectance(refl.y),
+                       pf_conductor_k_of_reflectance(refl.z));
         return PF_OK;
     }
+    m->m.eta = pf_v3(fmaxf(eta.x, 1e-4f), fmaxf(eta.y, 1e-4f), fmaxf(eta.z, 1e-4f));
+    m->m.k = pf_vmax(k, pf_v3s(0.0f));
     float n3[3] = { eta.x, eta.y, eta.z }, k3[3] = { k.x, k.y, k.z }, f[3];
     for (int i = 0; i < 3; i++)
         f[i] = ((n3[i] - 1) * (n3[i] - 1) + k3[i] * k3[i]) / ((n3[i] + 1) * (n3[i] + 1) + k3[i] * k3[i]);
     m->m.ks = pf_v3(f[0], f[1], f[2]);
+    if (!(eta.x > 0.0f && eta.y > 0.0f && eta.z > 0.0f && k.x >= 0.0f && k.y >= 0.0f && k.z >= 0.0f))
+        return pf_pbrt_warn(c, m->loc, "conductor eta <= 0 or k < 0 (clamped)",
+                            "%s: eta (%g %g %g), k (%g %g %g) clamped to eta >= 1e-4, k >= 0", what, eta.x, eta.y,
+                            eta.z, k.x, k.y, k.z);
     return PF_OK;
 }
 
 static int s_conductor(pf_pbrt_t *c, pf_pbrt_mat_t *m, const char *what, int coated)
 {
     int ok;
-    double alpha;
+    double au, av;
     int rc = s_conductor_f0(c, m, coated ? "conductor." : "", what, &ok);
     if (rc)
         return rc;
     if (!ok)
         return s_not_renderable(c, m, what, "has textured optical constants");
-    m->m.type = PF_MAT_MIRROR;
+    m->m.type = coated ? PF_MAT_MIRROR : PF_MAT_CONDUCTOR;
     if (coated) {
         s_use_all(&m->params);
         return pf_pbrt_warn(c, m->loc, "coatedconductor (approximated)",
@@ -299,12 +324,16 @@ static int s_conductor(pf_pbrt_t *c, pf_pbrt_mat_t *m, const char *what, int coa
                             "left out",
                             what, m->m.ks.x, m->m.ks.y, m->m.ks.z);
     }
-    if ((rc = s_alpha(c, &m->params, "", what, &alpha)))
+    if ((rc = s_alpha_uv(c, &m->params, "", what, &au, &av)))
         return rc;
-    if (alpha >= 1e-3)
-        return pf_pbrt_warn(c, m->loc, "rough conductor (rendered as a smooth mirror until GGX lands)",
-                            "%s: alpha %.3g; rendered as a mirror of reflectance (%.3g %.3g %.3g)", what, alpha,
-                            m->m.ks.x, m->m.ks.y, m->m.ks.z);
+    m->m.alpha = (float)fmin(0.5 * (au + av), 1.0);
+    if (au != av && (rc = pf_pbrt_warn(c, m->loc, "anisotropic roughness (isotropic mean used)",
+                                       "%s: alphas %.3g and %.3g; rendered with their mean %.3g", what, au, av,
+                                       0.5 * (au + av))))
+        return rc;
+    if (0.5 * (au + av) > 1.0)
+        return pf_pbrt_warn(c, m->loc, "conductor roughness above 1 (clamped)",
+                            "%s: alpha %.3g rendered as 1", what, 0.5 * (au + av));
     return PF_OK;
 }
 

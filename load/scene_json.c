@@ -171,9 +171,46 @@ static int s_render(s_ctx_t *c, const cJSON *r)
     return rc;
 }
 
+/* A conductor's keys: "eta" and "k" (RGB, the complex index), or
+ * "reflectance" (RGB normal-incidence reflectance: eta 1, k from it, as
+ * pbrt-v4), and "roughness" (GGX alpha in [0, 1]; 0, the default: smooth). */
+static int s_conductor(s_ctx_t *c, const cJSON *m, pf_material_t *mat)
+{
+    const char *what = "material";
+    const cJSON *veta = pf_json_get(m, "eta"), *vk = pf_json_get(m, "k"), *vr = pf_json_get(m, "reflectance"), *v;
+    int rc;
+    if (vr && (veta || vk))
+        return S_FAIL_AT(c, vr, "material '%s': give a conductor 'reflectance' or 'eta' and 'k', not both", mat->name);
+    if (!vr && !(veta && vk))
+        return S_FAIL_AT(c, m, "material '%s': a conductor needs 'eta' and 'k', or 'reflectance'", mat->name);
+    if (vr) {
+        pf_vec3 r;
+        if ((rc = pf_json_rgb(c, vr, "reflectance", what, 0.0f, 1.0f, &r)))
+            return rc;
+        mat->eta = pf_v3s(1.0f);
+        mat->k = pf_v3(pf_conductor_k_of_reflectance(r.x), pf_conductor_k_of_reflectance(r.y),
+                       pf_conductor_k_of_reflectance(r.z));
+    } else {
+        if ((rc = pf_json_rgb(c, veta, "eta", what, 0.0f, FLT_MAX, &mat->eta)))
+            return rc;
+        if (!(mat->eta.x > 0.0f && mat->eta.y > 0.0f && mat->eta.z > 0.0f))
+            return S_FAIL_AT(c, veta, "'eta' in material must be > 0 in every channel");
+        if ((rc = pf_json_rgb(c, vk, "k", what, 0.0f, FLT_MAX, &mat->k)))
+            return rc;
+    }
+    if ((v = pf_json_get(m, "roughness"))) {
+        if ((rc = pf_json_float(c, v, "roughness", what, &mat->alpha)))
+            return rc;
+        if (!(mat->alpha >= 0.0f && mat->alpha <= 1.0f))
+            return S_FAIL_AT(c, v, "'roughness' in material must lie in [0, 1] (got %g)", mat->alpha);
+    }
+    return PF_OK;
+}
+
 static int s_material(s_ctx_t *c, const cJSON *m)
 {
-    static const char *const keys[] = { "name", "type", "kd", "ks", "ns", "kt", "ior", "emission", NULL };
+    static const char *const keys[] = { "name", "type", "kd", "ks", "ns", "kt", "ior", "emission",
+                                        "eta", "k", "reflectance", "roughness", NULL };
     const char *what = "material";
     int rc = pf_json_check_object(c, m, what, keys);
     const cJSON *vname = NULL, *v;
@@ -199,6 +236,7 @@ static int s_material(s_ctx_t *c, const cJSON *m)
     static const char *const diffuse_keys[] = { "kd", "ks", "ns", "emission", NULL };
     static const char *const mirror_keys[] = { "ks", "emission", NULL };
     static const char *const glass_keys[] = { "ks", "kt", "ior", "emission", NULL };
+    static const char *const conductor_keys[] = { "eta", "k", "reflectance", "roughness", "emission", NULL };
     if (strcmp(type, "diffuse") == 0) {
         mat.type = PF_MAT_DIFFUSE;
         valid = diffuse_keys;
@@ -214,8 +252,13 @@ static int s_material(s_ctx_t *c, const cJSON *m)
         mat.kd = pf_v3s(0.0f);
         mat.ks = pf_v3s(1.0f);
         valid = glass_keys;
+    } else if (strcmp(type, "conductor") == 0) {
+        mat.type = PF_MAT_CONDUCTOR;
+        mat.kd = pf_v3s(0.0f);
+        valid = conductor_keys;
     } else {
-        return S_FAIL_AT(c, vtype, "unknown material type '%.64s' (expected diffuse, mirror or glass)", type);
+        return S_FAIL_AT(c, vtype, "unknown material type '%.64s' (expected diffuse, mirror, glass or conductor)",
+                         type);
     }
     for (const cJSON *k = m->child; k; k = k->next) {
         if (strcmp(k->string, "name") == 0 || strcmp(k->string, "type") == 0 || strcmp(k->string, "comment") == 0)
@@ -246,6 +289,8 @@ static int s_material(s_ctx_t *c, const cJSON *m)
         if (!(mat.ior > 0.0f))
             return S_FAIL_AT(c, v, "'ior' in material must be > 0 (got %g)", mat.ior);
     }
+    if (mat.type == PF_MAT_CONDUCTOR && (rc = s_conductor(c, m, &mat)))
+        return rc;
     /* A diffuse surface reflects kd + ks in total; more than 1 would create
      * energy and break the photon tracer's Russian roulette. */
     if (mat.type == PF_MAT_DIFFUSE)
@@ -450,7 +495,7 @@ static int s_mat_equal(const pf_material_t *a, const pf_material_t *b)
 {
     return strcmp(a->name, b->name) == 0 && a->type == b->type && s_vec_equal(a->kd, b->kd) &&
            s_vec_equal(a->ks, b->ks) && a->ns == b->ns && s_vec_equal(a->kt, b->kt) && a->ior == b->ior &&
-           s_vec_equal(a->le, b->le);
+           s_vec_equal(a->le, b->le) && s_vec_equal(a->eta, b->eta) && s_vec_equal(a->k, b->k) && a->alpha == b->alpha;
 }
 
 /* The MTL loader replaces a scene material of the same name in place, which

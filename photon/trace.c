@@ -5,8 +5,12 @@
  * survival probability, so expected power is conserved), stored at every hit
  * on a non-specular surface, the first included (the photon is stored before
  * roulette decides, so no power is lost at the first diffuse hit).
+ * Conductors reflect photons by sampling their BSDF (a smooth one as a
+ * mirror tinted by its Fresnel), with Russian roulette on the sampled weight
+ * f cos / pdf; no photon is stored there, and for the caustic map they count
+ * as specular (caustic paths are L (S|C)+ D, C a conductor, rough or not).
  * Caustic photons: a separate emission aimed at the bounding spheres of the
- * mirror and glass geometry (pf_lights_emit_targeted: the flux divides by the
+ * mirror, glass and conductor geometry (pf_lights_emit_targeted: the flux divides by the
  * cone-mixture pdf, so the estimate stays unbiased while no photon is spent
  * on directions that cannot reach a specular surface); only paths L S+ D are
  * stored, at the first non-specular hit, after which the photon ends. With no
@@ -29,6 +33,7 @@
 #include "base/reserve.h"
 #include "base/rng.h"
 #include "material/bsdf.h"
+#include "material/ggx.h"
 #include "photon/irradiance.h"
 
 #define PF_PHOTON_BLOCK 4096
@@ -57,6 +62,21 @@ typedef struct s_ctx {
     const pf_target_t *targets; /* specular bounding spheres caustic photons aim at */
     size_t ntargets;
 } s_ctx;
+
+/* A photon off a conductor: sampled (or mirrored, when smooth), then
+ * Russian roulette on the weight f cos / pdf. 0 when it ends here. */
+static int s_conductor(const pf_material_t *m, pf_vec3 nf, pf_vec3 ns, pf_vec3 wi, float u0, float u1, float u2,
+                       pf_vec3 *wo, pf_vec3 *power)
+{
+    pf_vec3 w;
+    if (!pf_conductor_scatter(m, ns, wi, u1, u2, wo, &w) || pf_dot(*wo, nf) <= 0.0f)
+        return 0;
+    float p = fminf(1.0f, pf_maxc(w));
+    if (!(p > 0.0f) || u0 >= p)
+        return 0;
+    *power = pf_mul(*power, pf_scale(w, 1.0f / p));
+    return 1;
+}
 
 /* Traces photon `index` of the map (caustic or global) into buf. Returns the
  * number of photons rejected for bad power (0 or 1), or PF_ENOMEM. */
@@ -128,6 +148,9 @@ static int s_trace(const s_ctx *c, uint64_t seed, uint64_t index, uint64_t emitt
                 return 0;
             power = pf_mul(power, pf_scale(m->ks, 1.0f / p));
             wo = pf_reflect(wi, ns);
+        } else if (m->type == PF_MAT_CONDUCTOR) {
+            if (!s_conductor(m, nf, ns, wi, u0, u1, u2, &wo, &power))
+                return 0;
         } else {
             int entering = pf_dot(ray.d, hit.ng) < 0.0f;
             float eta_i = entering ? 1.0f : m->ior, eta_t = entering ? m->ior : 1.0f;
@@ -219,7 +242,7 @@ int pf_photon_pass(const pf_scene_t *scene, const pf_accel_t *accel, const pf_li
     c.ntargets = (size_t)nt;
     uint64_t caustic_photons = nt > 0 ? settings->caustic_photons : 0;
     if (nt == 0 && settings->caustic_photons)
-        pf_info("caustic map skipped: no mirror or glass surfaces");
+        pf_info("caustic map skipped: no mirror, glass or conductor surfaces");
     pf_vec3 lo, hi;
     pf_scene_bounds(scene, &lo, &hi);
     float diag = pf_len(pf_sub(hi, lo));

@@ -8,7 +8,8 @@
  *   settings                      (the field group of messages.c, 84 bytes)
  *   u8 has_camera, vec3 pos, vec3 look_at, vec3 up, f32 vfov_deg,
  *     u8 fov_shorter, u8 left_handed, f32 lens_radius, f32 focal_distance
- *   u32 nmats,    nmats x   { str name, u8 type, vec3 kd, vec3 ks, f32 ns, vec3 kt, f32 ior, vec3 le }
+ *   u32 nmats,    nmats x   { str name, u8 type, vec3 kd, vec3 ks, f32 ns, vec3 kt, f32 ior, vec3 le,
+ *                             vec3 eta, vec3 k, f32 alpha }   (version 4: eta, k, alpha)
  *   u32 nmeshes,  nmeshes x { str name, u64 nverts, u64 ntris, u8 has_normals,
  *                             nverts x vec3 pos, (has_normals) nverts x vec3 nrm,
  *                             ntris x 3 u32 idx, ntris x u32 mat }
@@ -37,7 +38,7 @@
 #define S_WHERE "scene blob"
 
 /* The smallest encoded size of each repeated item, for the count checks. */
-#define S_MIN_MATERIAL (2 + 1 + 14 * 4)
+#define S_MIN_MATERIAL (2 + 1 + 21 * 4)
 #define S_MIN_MESH (2 + 8 + 8 + 1)
 #define S_VERTEX 12
 #define S_TRIANGLE 16
@@ -100,6 +101,9 @@ int pf_sceneblob_write(const pf_scene_t *scene, pf_buf_t *out)
         W(s_wr_vec3(out, m->kt));
         W(pf_wr_f32(out, m->ior));
         W(s_wr_vec3(out, m->le));
+        W(s_wr_vec3(out, m->eta));
+        W(s_wr_vec3(out, m->k));
+        W(pf_wr_f32(out, m->alpha));
     }
 
     W(pf_wr_u32(out, (uint32_t)scene->nmeshes));
@@ -290,8 +294,8 @@ static void s_read_materials(s_in_t *in, pf_scene_t *scene)
         memset(&m, 0, sizeof m);
         s_str(in, what, "name", m.name, sizeof m.name);
         uint8_t type = s_u8(in, what, "type");
-        if (!in->status && type > PF_MAT_GLASS)
-            s_fail(in, PF_EPARSE, "%s type %u is not a material type (0..2)", what, (unsigned)type);
+        if (!in->status && type > PF_MAT_CONDUCTOR)
+            s_fail(in, PF_EPARSE, "%s type %u is not a material type (0..3)", what, (unsigned)type);
         m.type = (pf_mat_type)type;
         m.kd = s_vec3(in, what, "kd");
         m.ks = s_vec3(in, what, "ks");
@@ -299,6 +303,13 @@ static void s_read_materials(s_in_t *in, pf_scene_t *scene)
         m.kt = s_vec3(in, what, "kt");
         m.ior = s_f32(in, what, "ior");
         m.le = s_vec3(in, what, "le");
+        m.eta = s_vec3(in, what, "eta");
+        m.k = s_vec3(in, what, "k");
+        m.alpha = s_f32(in, what, "alpha");
+        if (!in->status && m.type == PF_MAT_CONDUCTOR &&
+            !(m.eta.x > 0.0f && m.eta.y > 0.0f && m.eta.z > 0.0f && m.k.x >= 0.0f && m.k.y >= 0.0f &&
+              m.k.z >= 0.0f && m.alpha >= 0.0f && m.alpha <= 1.0f))
+            s_fail(in, PF_EPARSE, "%s conductor needs eta > 0, k >= 0 and alpha in [0, 1]", what);
         if (!in->status && pf_scene_add_material(scene, &m) < 0)
             s_fail(in, PF_ENOMEM, "out of memory for %s", what);
     }

@@ -10,8 +10,9 @@
 
 #define PF_SCENEBLOB_MAGIC 0x4e435346u /* "FSCN" */
 /* 3: the camera gained fov_shorter, left_handed, lens_radius and
- * focal_distance (after vfov_deg); version-2 blobs are refused. */
-#define PF_SCENEBLOB_VERSION 3
+ * focal_distance (after vfov_deg); 4: materials gained eta, k and alpha
+ * (the conductor's, after le). Older blobs are refused. */
+#define PF_SCENEBLOB_VERSION 4
 
 /* Serializes a finalized scene into out (reset first). 0 or PF_ENOMEM. */
 int pf_sceneblob_write(const pf_scene_t *scene, pf_buf_t *out);

@@ -20,35 +20,46 @@
  *                       irradiance_stride-th global photon)
  *
  * Path classes (Heckbert notation, read from the light L to the eye E; S is
- * a mirror or glass bounce, D a diffuse or glossy one, x the first
- * non-specular vertex seen from the eye):
+ * a mirror, glass or smooth conductor bounce, C a rough conductor (GGX,
+ * alpha >= 1e-3), D a diffuse or glossy one, x the first vertex seen from the
+ * eye that is not S; behind x, towards the light, C counts as S: gather rays
+ * follow it by sampling its BSDF, and photons leave it for L (S|C)+ D):
  *
  *   term        paths                  how
  *   emitted     L S* E                 Le added when a camera path (through
- *                                      mirrors/glass only) hits an emitter's front
+ *                                      S only) hits an emitter's front
  *   direct      L D S* E  (D = x)      light sampling at x; emitters are never
  *                                      counted when a camera path reaches them
  *                                      from x's own BSDF sampling
- *   caustic     L S+ D S* E            caustic map at x (diffuse part of x)
- *   indirect    L (S|D)* D S* D S* E   final gather from x: each gather ray
- *                                      follows mirrors/glass to the first
- *                                      non-specular y and takes the global
- *                                      map's radiance there (precomputed
- *                                      irradiance x kd/pi), which stands for
- *                                      every path that ends at y; emitters the
- *                                      gather ray reaches directly (L D E:
- *                                      direct) or through S+ (L S+ D E:
- *                                      caustic) are not counted
+ *   caustic     L (S|C)+ D S* E        caustic map at x (diffuse part of x)
+ *   indirect    L (S|C|D)* D (S|C)* D S* E
+ *                                      final gather from x: each gather ray
+ *                                      follows S and C to the first D, y, and
+ *                                      takes the global map's radiance there
+ *                                      (precomputed irradiance x kd/pi), which
+ *                                      stands for every path that ends at y;
+ *                                      emitters the gather ray reaches directly
+ *                                      (L D E: direct) or through (S|C)+
+ *                                      (L (S|C)+ D E: caustic) are not counted
  *   glossy      L ... S* G S* E        a glossy x samples its Phong lobe with one
  *                                      recursive ray; emitters that ray reaches
  *                                      directly are left to direct light, those it
  *                                      reaches through S+ are counted (the caustic
  *                                      map serves only x's diffuse part)
+ *   conductor   L ... C S* E  (C = x)  a rough conductor x: L C S* E by MIS
+ *                                      (power heuristic) of light_samples light
+ *                                      samples and one BSDF sample, the latter
+ *                                      also x's one recursive ray, which counts
+ *                                      the emitter it hits directly with its MIS
+ *                                      weight and the rest as a camera path
+ *                                      from there (L S+ C E as emitted, paths
+ *                                      with a vertex beyond by the next x)
  *
  * Every path from a light to the eye falls in exactly one row: the classes are
- * split by the first non-specular vertex from the eye (none: emitted; x) and
- * by what lies between x and the light (nothing: direct; only S: caustic;
- * a non-specular vertex: indirect).
+ * split by the first vertex from the eye that is not S (none: emitted; x) and,
+ * for a diffuse x, by what lies between x and the light (nothing: direct; only
+ * S or C: caustic; a D: indirect); a glossy or conductor x hands what lies
+ * beyond its recursive ray to the path that ray starts.
  *
  * Camera rays come from scene/camera.h: pinhole, or thin lens when the
  * camera's lens_radius > 0 (the lens sample's numbers: s_camera_sample).
@@ -65,6 +76,7 @@
 #include "base/log.h"
 #include "base/rng.h"
 #include "material/bsdf.h"
+#include "material/ggx.h"
 #include "photon/irrtex.h"
 
 /* The camera samples of one pixel reach nearly the same points, and the
@@ -118,6 +130,12 @@ typedef struct s_state {
     pf_vec3 gf[S_MAX_CLUSTERS];
     uint64_t pixel;
     uint32_t sample;
+    /* The BSDF-sampled ray of a rough conductor (s_rough) in flight: where it
+     * left, its pdf and the number of light samples taken there, for the
+     * MIS weight of an emitter it hits (s_radiance with count_le 2). */
+    pf_vec3 mis_x;
+    float mis_pdf;
+    int mis_nl;
     pf_pm_scratch_t scratch;
 } s_state;
 
@@ -236,6 +254,12 @@ static void s_gather_trace(s_state *st, pf_ray_t ray, s_gather_end *end)
         if (m->type == PF_MAT_MIRROR) {
             thr = pf_mul(thr, m->ks);
             wi = pf_reflect(wo, ns);
+        } else if (m->type == PF_MAT_CONDUCTOR) {
+            pf_vec3 w;
+            float u1 = s_u(st), u2 = s_u(st);
+            if (!pf_conductor_scatter(m, ns, wo, u1, u2, &wi, &w) || pf_dot(wi, nf) <= 0.0f)
+                return;
+            thr = pf_mul(thr, w);
         } else {
             int entering = pf_dot(ray.d, h.ng) < 0.0f;
             float eta_i = entering ? 1.0f : m->ior, eta_t = entering ? m->ior : 1.0f;
@@ -374,10 +398,73 @@ static s_glass s_glass_at(const pf_material_t *m, pf_vec3 d, pf_vec3 ng, pf_vec3
     return g;
 }
 
+static pf_vec3 s_radiance(s_state *st, pf_ray_t ray, int depth, pf_vec3 thr, int count_le, int primary);
+
+/* The power heuristic's weight of a sample of pdf a (taken na times) against
+ * the other strategy's pdf b (taken nb times). */
+static float s_power(float na, float a, float nb, float b)
+{
+    float x = na * a, y = nb * b;
+    return x * x / (x * x + y * y);
+}
+
+/* A rough conductor as x: direct light by multiple importance sampling of
+ * light_samples light samples and one BSDF sample, which is also the path's
+ * one recursive ray (the emitter it hits directly weighted by MIS: count_le
+ * 2, st->mis_*). */
+static pf_vec3 s_rough(s_state *st, const pf_hit_t *h, const pf_material_t *m, pf_vec3 nf, pf_vec3 ns, pf_vec3 wo,
+                       int depth, pf_vec3 thr)
+{
+    const pf_render_ctx_t *c = st->ctx;
+    int recurse = depth < c->settings.max_depth;
+    int n = c->settings.light_samples > 0 ? c->settings.light_samples : 1;
+    pf_vec3 sum = pf_v3s(0.0f);
+    for (int i = 0; (c->terms & PF_TERM_DIRECT) && i < n; i++) {
+        float u[3] = { s_u(st), s_u(st), s_u(st) };
+        pf_light_conn_t lc;
+        if (!pf_lights_sample_direct(c->lights, c->scene, h->p, u, &lc))
+            continue;
+        float cos_x = pf_dot(lc.wi, ns);
+        if (cos_x <= 0.0f || pf_dot(lc.wi, nf) <= 0.0f)
+            continue;
+        pf_vec3 f = pf_conductor_eval(m, ns, wo, lc.wi);
+        if (pf_is_black(f) || !s_visible(c->accel, h, lc.wi, lc.dist))
+            continue;
+        float w = recurse && lc.pdf > 0.0f ? s_power((float)n, lc.pdf, 1.0f, pf_conductor_pdf(m, ns, wo, lc.wi)) : 1.0f;
+        sum = pf_add(sum, pf_scale(pf_mul(f, lc.weight), cos_x * w));
+    }
+    pf_vec3 L = pf_scale(sum, 1.0f / (float)n);
+    pf_vec3 wi, wgt;
+    float pdf, u1 = recurse ? s_u(st) : 0.0f, u2 = recurse ? s_u(st) : 0.0f;
+    if (!recurse || !pf_conductor_sample(m, ns, wo, u1, u2, &wi, &wgt, &pdf) || pf_dot(wi, nf) <= 0.0f)
+        return L;
+    st->mis_x = h->p;
+    st->mis_pdf = pdf;
+    st->mis_nl = n;
+    pf_vec3 li = s_radiance(st, pf_spawn_ray(h, wi), depth + 1, pf_mul(thr, wgt), 2, 0);
+    return pf_add(L, pf_mul(wgt, li));
+}
+
+/* The radiance an emitter hit at h along d sends back, as count_le (1 or 2)
+ * counts it (see s_radiance). */
+static pf_vec3 s_emitted(const s_state *st, const pf_hit_t *h, const pf_material_t *m, pf_vec3 d, int count_le)
+{
+    const pf_render_ctx_t *c = st->ctx;
+    if (!(c->terms & (count_le == 2 ? PF_TERM_DIRECT : PF_TERM_EMITTED)) || pf_is_black(m->le) ||
+        pf_dot(d, h->ng) >= 0.0f)
+        return pf_v3s(0.0f);
+    if (count_le == 1)
+        return m->le;
+    /* x's light sampling would have chosen this point with that pdf */
+    float pl = pf_lights_pdf(c->lights, c->scene, st->mis_x, h->geom, h->prim, h->p);
+    return pf_scale(m->le, s_power(1.0f, st->mis_pdf, (float)st->mis_nl, pl));
+}
+
 /* Radiance along a camera path. thr is the path's throughput so far (to size
  * the final gather below dim specular branches); count_le says whether an
- * emitter hit here counts (see the table above); primary, whether the path
- * has met only mirrors so far (its first gather may be filtered). */
+ * emitter hit here counts (see the table above): 0 no, 1 yes, 2 with the MIS
+ * weight of a rough conductor's BSDF sample (st->mis_*); primary, whether
+ * the path has met only mirrors so far (its first gather may be filtered). */
 static pf_vec3 s_radiance(s_state *st, pf_ray_t ray, int depth, pf_vec3 thr, int count_le, int primary)
 {
     const pf_render_ctx_t *c = st->ctx;
@@ -388,9 +475,9 @@ static pf_vec3 s_radiance(s_state *st, pf_ray_t ray, int depth, pf_vec3 thr, int
     pf_vec3 wo = pf_neg(ray.d);
     pf_vec3 nf = pf_face_forward(h.ng, wo);
     pf_vec3 ns = pf_dot(h.ng, nf) > 0.0f ? h.ns : pf_neg(h.ns);
-    pf_vec3 L = pf_v3s(0.0f);
-    if (count_le && (c->terms & PF_TERM_EMITTED) && !pf_is_black(m->le) && pf_dot(ray.d, h.ng) < 0.0f)
-        L = m->le;
+    pf_vec3 L = count_le ? s_emitted(st, &h, m, ray.d, count_le) : pf_v3s(0.0f);
+    if (pf_mat_rough(m))
+        return pf_add(L, s_rough(st, &h, m, nf, ns, wo, depth, thr));
 
     if (m->type == PF_MAT_DIFFUSE) {
         if (!pf_mat_nonspecular(m))
@@ -432,9 +519,11 @@ static pf_vec3 s_radiance(s_state *st, pf_ray_t ray, int depth, pf_vec3 thr, int
     }
     if (depth >= c->settings.max_depth)
         return L;
-    if (m->type == PF_MAT_MIRROR) {
+    if (m->type == PF_MAT_MIRROR || m->type == PF_MAT_CONDUCTOR) {
+        /* a smooth conductor: a mirror tinted by its Fresnel at this angle */
         pf_vec3 wi = pf_reflect(wo, ns);
-        return pf_add(L, pf_mul(m->ks, s_radiance(st, pf_spawn_ray(&h, wi), depth + 1, pf_mul(thr, m->ks), 1, primary)));
+        pf_vec3 ks = m->type == PF_MAT_MIRROR ? m->ks : pf_fresnel_conductor(pf_dot(wo, ns), m->eta, m->k);
+        return pf_add(L, pf_mul(ks, s_radiance(st, pf_spawn_ray(&h, wi), depth + 1, pf_mul(thr, ks), 1, primary)));
     }
     /* Glass: both branches near the eye, where their noise would show; one
      * chosen by Fresnel deeper down. The refracted branch near the eye (or
@@ -591,8 +680,10 @@ static const pf_material_t *s_primary_hit(const pf_render_ctx_t *c, pf_ray_t ray
             return pf_mat_nonspecular(m) && !pf_is_black(m->kd) ? m : NULL;
         if (depth >= c->settings.max_depth)
             return NULL;
+        if (pf_mat_rough(m))
+            return NULL; /* a random branch from here on */
         pf_vec3 wi = pf_reflect(wo, *ns);
-        if (m->type != PF_MAT_MIRROR) {
+        if (m->type == PF_MAT_GLASS) {
             s_glass g = s_glass_at(m, ray.d, h->ng, wo, *ns);
             if (g.can_refract && depth >= S_GLASS_SPLIT_DEPTH)
                 return NULL; /* a random branch from here on */

@@ -45,6 +45,7 @@ pf_material_t pf_material_default(const char *name)
     m.ns = 1.0f;
     m.ior = 1.5f;
     m.kt = pf_v3s(1.0f);
+    m.eta = pf_v3s(1.0f);
     return m;
 }
 
@@ -200,7 +201,7 @@ static pf_vec3 s_unit_normal(pf_vec3 n)
 static int s_mat_finite(const pf_material_t *m)
 {
     return pf_is_finite3(m->kd) && pf_is_finite3(m->ks) && pf_is_finite3(m->kt) && pf_is_finite3(m->le) &&
-           isfinite(m->ns) && isfinite(m->ior);
+           isfinite(m->ns) && isfinite(m->ior) && pf_is_finite3(m->eta) && pf_is_finite3(m->k) && isfinite(m->alpha);
 }
 
 /* Removes triangles that cannot be rendered: zero area, an area whose square
@@ -276,6 +277,15 @@ int pf_scene_finalize(pf_scene_t *self, pf_error_t *err)
             return pf_error_set(err, PF_EPARSE, file, 0, "material '%s' has a non-finite value", m->name);
         if (m->type == PF_MAT_GLASS && !(m->ior > 0.0f))
             return pf_error_set(err, PF_EPARSE, file, 0, "material '%s': index of refraction must be > 0", m->name);
+        if (m->type == PF_MAT_CONDUCTOR && !(m->eta.x > 0.0f && m->eta.y > 0.0f && m->eta.z > 0.0f))
+            return pf_error_set(err, PF_EPARSE, file, 0, "material '%s': conductor eta must be > 0", m->name);
+        if (m->type == PF_MAT_CONDUCTOR && !(m->k.x >= 0.0f && m->k.y >= 0.0f && m->k.z >= 0.0f))
+            return pf_error_set(err, PF_EPARSE, file, 0, "material '%s': conductor k must be >= 0", m->name);
+        if (m->type == PF_MAT_CONDUCTOR && !(m->alpha >= 0.0f && m->alpha <= 1.0f))
+            return pf_error_set(err, PF_EPARSE, file, 0, "material '%s': conductor roughness must be in [0, 1]",
+                                m->name);
+        if (m->type > PF_MAT_CONDUCTOR)
+            return pf_error_set(err, PF_EPARSE, file, 0, "material '%s': unknown type %d", m->name, (int)m->type);
     }
     size_t dropped = 0, ntris = 0;
     for (size_t mi = 0; mi < self->nmeshes; mi++) {

@@ -18,6 +18,7 @@ typedef enum {
     PF_MAT_DIFFUSE = 0, /* Lambertian kd, plus an optional energy-conserving Phong lobe ks/ns */
     PF_MAT_MIRROR = 1,  /* perfect specular reflection with reflectance ks */
     PF_MAT_GLASS = 2,   /* smooth dielectric: Fresnel reflection tinted ks, refraction tinted kt, index ior */
+    PF_MAT_CONDUCTOR = 3, /* metal: GGX microfacets of roughness alpha (0: smooth), complex index eta + i k per channel */
 } pf_mat_type;
 
 #define PF_NAME_MAX 64
@@ -30,8 +31,20 @@ typedef struct pf_material {
     float ns;    /* Phong exponent (DIFFUSE with ks > 0) */
     pf_vec3 kt;  /* transmission tint (GLASS) */
     float ior;   /* index of refraction (GLASS) */
+    pf_vec3 eta; /* real part of the complex index of refraction (CONDUCTOR), > 0 */
+    pf_vec3 k;   /* imaginary part, the extinction coefficient (CONDUCTOR), >= 0 */
+    float alpha; /* GGX roughness alpha in [0, 1] (CONDUCTOR); below 1e-3 a smooth mirror */
     pf_vec3 le;  /* emitted radiance, one-sided */
 } pf_material_t;
+
+/* pbrt-v4's "reflectance" form of a conductor: eta = 1 and this k, which
+ * gives normal-incidence reflectance r ((1 - eta)^2 + k^2) / ((1 + eta)^2 + k^2)
+ * = r; r is clamped to at most 0.9999 (r = 1 needs an infinite k). */
+static inline float pf_conductor_k_of_reflectance(float r)
+{
+    r = r < 0.0f ? 0.0f : r > 0.9999f ? 0.9999f : r;
+    return 2.0f * sqrtf(r) / sqrtf(1.0f - r);
+}
 
 /* A triangle mesh in world space. nrm is per vertex (shading normals) or NULL. */
 typedef struct pf_mesh {

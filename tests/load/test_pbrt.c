@@ -263,6 +263,9 @@ static void test_materials(void)
         "MakeNamedMaterial \"au\" \"string type\" \"conductor\" \"spectrum eta\" \"metal-Au-eta\"\n"
         "  \"spectrum k\" \"metal-Au-k\" \"float roughness\" 0.5\n"
         "MakeNamedMaterial \"refl\" \"string type\" \"conductor\" \"rgb reflectance\" [0.9 0.8 0.7]\n"
+        "MakeNamedMaterial \"aniso\" \"string type\" \"conductor\" \"float uroughness\" 0.04 \"float vroughness\" 0.16\n"
+        "MakeNamedMaterial \"raw\" \"string type\" \"conductor\" \"float roughness\" 0.3 \"bool remaproughness\" false\n"
+        "MakeNamedMaterial \"neg\" \"string type\" \"conductor\" \"rgb eta\" [0 0.5 0.5] \"rgb k\" [1 2 1]\n"
         "MakeNamedMaterial \"bk7\" \"string type\" \"dielectric\" \"spectrum eta\" \"glass-BK7\"\n"
         "MakeNamedMaterial \"water\" \"string type\" \"dielectric\" \"float eta\" 1.33\n"
         "MakeNamedMaterial \"coat\" \"string type\" \"coateddiffuse\" \"rgb reflectance\" [1 1 1]\n"
@@ -274,22 +277,34 @@ static void test_materials(void)
         "MakeNamedMaterial \"later\" \"string type\" \"diffuse\" \"float foo\" 1\n"
         "MakeNamedMaterial \"air\" \"string type\" \"interface\"\n" S_SHAPE("red") S_SHAPE("cu") S_SHAPE("au")
             S_SHAPE("refl") S_SHAPE("bk7") S_SHAPE("water") S_SHAPE("coat") S_SHAPE("tex") S_SHAPE("const")
-                S_SHAPE("mix") S_SHAPE("air") "Material \"diffuse\" \"rgb reflectance\" [0.25 0.25 0.25]\n" S_TRI,
+                S_SHAPE("mix") S_SHAPE("air") S_SHAPE("aniso") S_SHAPE("raw") S_SHAPE("neg") "Material \"diffuse\" \"rgb reflectance\" [0.25 0.25 0.25]\n" S_TRI,
         0, &rep, &err);
     CHECK(s != NULL, "%s", err.msg);
     if (!s)
         return;
     const pf_material_t *m;
-    CHECK(s->nmeshes == 12, "the interface shape is dropped: %zu meshes", s->nmeshes);
+    CHECK(s->nmeshes == 15, "the interface shape is dropped: %zu meshes", s->nmeshes);
     if ((m = s_mat(s, "red")))
         CHECK(m->type == PF_MAT_DIFFUSE && s_vnear(m->kd, 0.8f, 0, 0));
     if ((m = s_mat(s, "cu")))
-        CHECK(m->type == PF_MAT_MIRROR && s_vnear(m->ks, s_f0(0.2f, 3.9f), s_f0(0.9f, 2.4f), s_f0(1.1f, 2.1f)));
+        CHECK(m->type == PF_MAT_CONDUCTOR && s_vnear(m->eta, 0.2f, 0.9f, 1.1f) && s_vnear(m->k, 3.9f, 2.4f, 2.1f) &&
+              m->alpha == 0.0f && s_vnear(m->ks, s_f0(0.2f, 3.9f), s_f0(0.9f, 2.4f), s_f0(1.1f, 2.1f)));
     if ((m = s_mat(s, "au")))
-        CHECK(m->type == PF_MAT_MIRROR &&
-              s_vnear(m->ks, s_f0(0.143119f, 3.98316f), s_f0(0.374957f, 2.385721f), s_f0(1.442479f, 1.603215f)));
+        CHECK(m->type == PF_MAT_CONDUCTOR && s_vnear(m->eta, 0.143119f, 0.374957f, 1.442479f) &&
+                  s_vnear(m->k, 3.98316f, 2.385721f, 1.603215f) && s_near(m->alpha, sqrtf(0.5f)),
+              "remapped alpha sqrt(0.5): %g", m->alpha);
+    /* reflectance r: eta 1, k = 2 sqrt(r) / sqrt(1 - r), so that F0 = k^2 / (4 + k^2) = r */
     if ((m = s_mat(s, "refl")))
-        CHECK(m->type == PF_MAT_MIRROR && s_vnear(m->ks, 0.9f, 0.8f, 0.7f));
+        CHECK(m->type == PF_MAT_CONDUCTOR && s_vnear(m->eta, 1, 1, 1) &&
+              s_vnear(m->k, 2.0f * sqrtf(0.9f) / sqrtf(0.1f), 2.0f * sqrtf(0.8f) / sqrtf(0.2f), 2.0f * sqrtf(0.7f) / sqrtf(0.3f)));
+    if ((m = s_mat(s, "aniso")))
+        CHECK(m->type == PF_MAT_CONDUCTOR && s_near(m->alpha, 0.5f * (0.2f + 0.4f)), "mean of alphas: %g", m->alpha);
+    if ((m = s_mat(s, "raw")))
+        CHECK(m->type == PF_MAT_CONDUCTOR && s_near(m->alpha, 0.3f), "remaproughness false: %g", m->alpha);
+    if ((m = s_mat(s, "neg")))
+        CHECK(m->type == PF_MAT_CONDUCTOR && s_vnear(m->eta, 1e-4f, 0.5f, 0.5f) && s_vnear(m->k, 1, 2, 1) &&
+                  s_warned(&rep, "conductor eta <= 0 or k < 0 (clamped)") == 1,
+              "an eta of 0 is clamped and warned (negative ones are parse errors)");
     if ((m = s_mat(s, "bk7")))
         CHECK(m->type == PF_MAT_GLASS && s_near(m->ior, 1.5168f));
     if ((m = s_mat(s, "water")))
@@ -307,7 +322,8 @@ static void test_materials(void)
         CHECK(s_vnear(m->kd, 0.5f, 0.5f, 0.5f), "a forward NamedMaterial resolves");
     const pf_mesh_t *last = &s->meshes[s->nmeshes - 1];
     CHECK(s_vnear(s->mats[last->mat[0]].kd, 0.25f, 0.25f, 0.25f), "Material sets the current material");
-    CHECK(s_warned(&rep, "rough conductor") == 1 && s_warned(&rep, "coateddiffuse") == 1 &&
+    CHECK(s_warned(&rep, "rough conductor") == 0 && s_warned(&rep, "anisotropic roughness (isotropic mean used)") == 1 &&
+          s_warned(&rep, "coateddiffuse") == 1 &&
           s_warned(&rep, "texture") == 1 && s_warned(&rep, "mix") == 1 && s_warned(&rep, "interface") == 1 &&
           s_warned(&rep, "unused parameter \"float foo\"") == 1);
     pf_scene_destroy(&s);
@@ -631,9 +647,15 @@ static void test_bitterli(void)
         const pf_material_t *m = s_mat(s, "Diffuse");
         CHECK(m && m->type == PF_MAT_DIFFUSE && s_vnear(m->kd, 0.5f, 0.5f, 0.5f));
     }
-    CHECK(rep.nwarnings == 3 && s_warned(&rep, "Sampler (ignored)") == 1 && s_warned(&rep, "PixelFilter (ignored)") == 1 &&
-              s_warned(&rep, "rough conductor") == 4,
+    CHECK(rep.nwarnings == 2 && s_warned(&rep, "Sampler (ignored)") == 1 && s_warned(&rep, "PixelFilter (ignored)") == 1 &&
+              s_warned(&rep, "rough conductor") == 0,
           "%zu kinds", rep.nwarnings);
+    if (s) {
+        size_t rough = 0;
+        for (size_t i = 0; i < s->nmats; i++)
+            rough += s->mats[i].type == PF_MAT_CONDUCTOR && s->mats[i].alpha > 0.0f;
+        CHECK(rough == 4, "veach-mis: 4 rough conductor plates, got %zu", rough);
+    }
     pf_scene_destroy(&s);
     /* The dining room has the sun and sky alone (not rendered yet): it parses,
      * and finalize refuses it for want of a light. */
@@ -644,10 +666,11 @@ static void test_bitterli(void)
         ntris += s->meshes[i].ntris;
     CHECK(s->nmeshes == 53 && ntris == 269538 && s->nlights == 0, "%zu meshes, %zu triangles", s->nmeshes, ntris);
     const char *kinds[] = { "Sampler (ignored)", "PixelFilter (ignored)", "light type distant", "light type infinite",
-                            "texture", "coateddiffuse (approximated)", "rough conductor" };
+                            "texture", "coateddiffuse (approximated)" };
     for (size_t i = 0; i < sizeof kinds / sizeof *kinds; i++)
         CHECK(s_warned(&rep, kinds[i]) >= 1, "%s", kinds[i]);
-    CHECK(rep.nwarnings == 7 && s_warned(&rep, "texture") == 3, "%zu kinds", rep.nwarnings);
+    CHECK(rep.nwarnings == 6 && s_warned(&rep, "texture") == 3 && s_warned(&rep, "rough conductor") == 0, "%zu kinds",
+          rep.nwarnings);
     pf_scene_destroy(&s);
     s = pf_scene_load(dining, &err);
     CHECK(!s && strstr(err.msg, "the scene has no light"), "%s", err.msg);

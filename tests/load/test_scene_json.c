@@ -540,6 +540,54 @@ static void test_camera_lens(void)
     pf_scene_destroy(&sc);
 }
 
+/* The conductor's keys: "eta" + "k" land as given, "reflectance" becomes
+ * eta 1 and the k of that normal-incidence reflectance, "roughness" is the
+ * GGX alpha (default 0); errors for both forms, neither, or bad ranges. */
+static void test_conductor(void)
+{
+    pf_error_t err = { { 0 } };
+    pf_scene_t *sc = s_json_text("{ \"materials\": [ { \"name\": \"gold\", \"type\": \"conductor\",\n"
+                                 "  \"eta\": [0.14, 0.37, 1.44], \"k\": [3.98, 2.38, 1.60], \"roughness\": 0.2 },\n"
+                                 "  { \"name\": \"chrome\", \"type\": \"conductor\", \"reflectance\": [0.5, 0.25, 0] } ] }\n",
+                                 &err);
+    CHECK(sc && sc->nmats == 2, "two conductors load: %s", sc ? "" : err.msg);
+    if (sc && sc->nmats == 2) {
+        const pf_material_t *g = &sc->mats[0], *c = &sc->mats[1];
+        CHECK(g->type == PF_MAT_CONDUCTOR && g->alpha == 0.2f && g->eta.y == 0.37f && g->k.z == 1.60f,
+              "eta, k, roughness land (type %d alpha %g)", (int)g->type, g->alpha);
+        /* r = ((eta-1)^2 + k^2) / ((eta+1)^2 + k^2) with eta 1: k^2 / (4 + k^2) */
+        float k = c->k.x, r = k * k / (4.0f + k * k);
+        CHECK(c->type == PF_MAT_CONDUCTOR && c->alpha == 0.0f && c->eta.x == 1.0f && fabsf(r - 0.5f) < 1e-5f &&
+                  c->k.z == 0.0f && fabsf(c->k.y * c->k.y / (4.0f + c->k.y * c->k.y) - 0.25f) < 1e-5f,
+              "reflectance 0.5 -> eta 1, k %g (r %g)", k, r);
+    }
+    pf_scene_destroy(&sc);
+    static const struct {
+        const char *text, *want;
+    } bad[] = {
+        { "{ \"materials\": [ { \"name\": \"a\", \"type\": \"conductor\" } ] }\n", "needs 'eta' and 'k', or 'reflectance'" },
+        { "{ \"materials\": [ { \"name\": \"a\", \"type\": \"conductor\", \"eta\": 1 } ] }\n", "needs 'eta' and 'k'" },
+        { "{ \"materials\": [ { \"name\": \"a\", \"type\": \"conductor\", \"eta\": 1, \"k\": 1, \"reflectance\": 0.5 } ] }\n",
+          "not both" },
+        { "{ \"materials\": [ { \"name\": \"a\", \"type\": \"conductor\", \"eta\": 0, \"k\": 1 } ] }\n",
+          "'eta' in material must be > 0" },
+        { "{ \"materials\": [ { \"name\": \"a\", \"type\": \"conductor\", \"eta\": 1, \"k\": -1 } ] }\n",
+          "'k' in material must be >= 0" },
+        { "{ \"materials\": [ { \"name\": \"a\", \"type\": \"conductor\", \"reflectance\": 1.5 } ] }\n",
+          "'reflectance' in material must lie in [0, 1]" },
+        { "{ \"materials\": [ { \"name\": \"a\", \"type\": \"conductor\", \"reflectance\": 0.5, \"roughness\": 2 } ] }\n",
+          "'roughness' in material must lie in [0, 1]" },
+        { "{ \"materials\": [ { \"name\": \"a\", \"type\": \"conductor\", \"reflectance\": 0.5, \"kd\": 0.5 } ] }\n",
+          "key 'kd' does not apply to a conductor material" },
+        { "{ \"materials\": [ { \"name\": \"a\", \"roughness\": 0.5 } ] }\n", "key 'roughness' does not apply to a diffuse" },
+    };
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+        sc = s_json_text(bad[i].text, &err);
+        CHECK(!sc && strstr(err.msg, bad[i].want), "case %zu: want '%s', got '%s'", i, bad[i].want, sc ? "" : err.msg);
+        pf_scene_destroy(&sc);
+    }
+}
+
 /* The "materials" map must name MTL materials the model uses; both models.json
  * loaders are needed, so this is separate from the inline cases above. */
 static void test_remap_errors(void)
@@ -650,6 +698,7 @@ int main(void)
     test_bad_files();
     test_bad_inline();
     test_camera_lens();
+    test_conductor();
     test_models();
     test_remap_errors();
     test_corruptions();
