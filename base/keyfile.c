@@ -110,6 +110,23 @@ static int s_open(s_reader *r, const char *path, pf_error_t *err)
     return 0;
 }
 
+/* A secret key file others can read (or write) is refused, like ssh does:
+ * any access for others, and group access on a file the reader owns (a file
+ * owned by root and shared with a service group, 0640 or 0440, is fine). */
+static int s_check_private(s_reader *r, pf_error_t *err)
+{
+    struct stat st;
+    if (fstat(fileno(r->f), &st) != 0)
+        return pf_error_set(err, PF_EIO, r->path, 0, "cannot stat: %s", strerror(errno));
+    unsigned mode = (unsigned)(st.st_mode & 07777);
+    int others = (mode & 0007) != 0, group = (mode & 0070) != 0 && st.st_uid == geteuid();
+    if (!S_ISREG(st.st_mode) || (!others && !group))
+        return PF_OK;
+    return pf_error_set(err, PF_EIO, r->path, 0,
+                        "this secret key file is %s by %s (mode %04o): chmod 600 %s", (mode & 0022) ? "accessible"
+                        : "readable", others ? "others" : "its group", mode, r->path);
+}
+
 int pf_keyfile_read(const char *path, char public_z85[41], char secret_z85[41], pf_error_t *err)
 {
     s_reader r;
@@ -150,6 +167,10 @@ int pf_keyfile_read(const char *path, char public_z85[41], char secret_z85[41], 
             have_secret = 1;
         }
     }
+    /* Checked once the file is known to hold a secret: a public key file
+     * read where a pair is wanted is better told so. */
+    if (rc >= 0 && secret_z85 && have_secret && (rc = s_check_private(&r, err)) != PF_OK)
+        memset(secret_z85, 0, PF_Z85_KEY_LEN + 1);
     fclose(r.f);
     free(r.buf);
     if (rc < 0)

@@ -24,7 +24,13 @@ int pf_z85_key_valid(const char *s);
 
 /* Reads a key file. public_z85 receives the public key (NUL-terminated).
  * When secret_z85 is not NULL the secret key is required and copied there;
- * when NULL a secret in the file is ignored. 0, or PF_EIO (unreadable) /
+ * when NULL a secret in the file is ignored. When the secret is wanted, a
+ * file others may read or write, or (owned by the reader) its group may, is
+ * refused like ssh refuses such a key: PF_EIO, "FILE: this secret key file
+ * is readable by others (mode 0644): chmod 600 FILE"; a file owned by
+ * another user (root) and shared with a group (0640, 0440) is accepted.
+ * Public-key files and lists may be readable by anyone. 0, or PF_EIO
+ * (unreadable, or a secret others can read) /
  * PF_EPARSE (malformed: "file:line: what", or "file: no public-key line")
  * with err filled. */
 int pf_keyfile_read(const char *path, char public_z85[41], char secret_z85[41], pf_error_t *err);

@@ -21,6 +21,48 @@ double pf_now(void)
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
+/* The escaped form of byte c in esc (at least 5 bytes); its length. */
+static size_t s_printable_byte(unsigned char c, char esc[8])
+{
+    if (c < 0x20 || c >= 0x7f)
+        return (size_t)snprintf(esc, 8, "\\x%02x", (unsigned)c);
+    if (c == '\\')
+        return (size_t)snprintf(esc, 8, "\\\\");
+    esc[0] = (char)c;
+    esc[1] = '\0';
+    return 1;
+}
+
+char *pf_log_printable(char *dst, unsigned long cap, const char *src)
+{
+    if (!dst || cap == 0)
+        return dst;
+    if (!src)
+        src = "(null)";
+    const unsigned char *p = (const unsigned char *)src;
+    char esc[8];
+    size_t total = 0;
+    for (const unsigned char *q = p; *q; q++)
+        total += s_printable_byte(*q, esc);
+    /* When all of it does not fit, room is kept for "..." and escapes are
+     * never cut in half (a cap under 5 leaves no room for the dots). */
+    size_t room = total + 1 <= cap ? cap - 1 : (cap > 4 ? cap - 4 : cap - 1);
+    size_t n = 0;
+    for (; *p; p++) {
+        size_t k = s_printable_byte(*p, esc);
+        if (n + k > room)
+            break;
+        memcpy(dst + n, esc, k);
+        n += k;
+    }
+    if (*p && cap > 4) {
+        memcpy(dst + n, "...", 3);
+        n += 3;
+    }
+    dst[n] = '\0';
+    return dst;
+}
+
 void pf_log(pf_log_level level, const char *fmt, ...)
 {
     if (level < s_level)

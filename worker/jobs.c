@@ -11,6 +11,13 @@
  * thread checks between rows; queued items of a cancelled job are taken out
  * of the queue at once.
  *
+ * Trust. The coordinator is not believed blindly: a blob's buffer grows as
+ * its chunks arrive (doubling, capped at the size the JOB announced and at
+ * S_MAX_BLOB_SIZE), so a JOB announcing 64 GiB allocates nothing until that
+ * much data comes; a TILE beyond the credit READY announced, or a copy of a
+ * lease already held, is dropped with a warning before its buffer is
+ * allocated.
+ *
  * This file owns the worker's blobs, built scene cache, BUILD list and
  * current job (fields of s_worker). Only the main thread calls it; the
  * compute thread reads a job and its blobs only through the work items. */
@@ -24,11 +31,11 @@
 #include "photon/mapfile.h"
 #include "worker/worker_impl.h"
 
-#define S_CREDIT 3                /* tiles in flight: one rendering, two queued, so the worker never idles */
 #define S_WINDOW 8                /* blob chunks requested ahead */
 #define S_MAX_BLOBS 4             /* complete blobs kept (LRU) */
 #define S_STALL_S 10.0            /* a transfer with no chunk for this long is requested again */
 #define S_MAX_BLOB_SIZE (UINT64_C(1) << 36) /* 64 GiB: anything larger is not a scene or a map */
+#define S_BLOB_FIRST_ALLOC (UINT64_C(4) << 20) /* a blob's first buffer; it doubles as chunks arrive */
 
 /* ---- builds under way ---- */
 
@@ -122,6 +129,28 @@ static void s_blobs_trim(s_worker *w)
     }
 }
 
+/* Makes room at b->data for need bytes (need <= b->size <= S_MAX_BLOB_SIZE):
+ * the buffer doubles from S_BLOB_FIRST_ALLOC, never past the blob's size.
+ * 0, or -1 when memory is short (b unchanged). */
+static int s_blob_grow(s_blob *b, uint64_t need)
+{
+    if (need <= b->alloc)
+        return 0;
+    uint64_t cap = b->alloc ? b->alloc : S_BLOB_FIRST_ALLOC;
+    while (cap < need)
+        cap *= 2;
+    if (cap > b->size)
+        cap = b->size;
+    if (cap > SIZE_MAX)
+        return -1;
+    uint8_t *data = realloc(b->data, (size_t)cap);
+    if (!data)
+        return -1;
+    b->data = data;
+    b->alloc = cap;
+    return 0;
+}
+
 /* Asks for more chunks so that about S_WINDOW are outstanding. */
 static void s_blob_request(s_worker *w, s_blob *b)
 {
@@ -170,18 +199,16 @@ static s_blob *s_blob_get(s_worker *w, uint64_t hash, uint64_t size, const char 
     }
     if (pf_reserve((void **)&w->blobs, &w->cap_blobs, w->nblobs + 1, sizeof *w->blobs))
         return NULL;
+    /* Nothing is allocated for the data yet: the buffer grows as chunks
+     * arrive (s_blob_grow), so a JOB announcing a huge size costs nothing
+     * until the coordinator actually sends that much. */
     b = calloc(1, sizeof *b);
-    uint8_t *data = malloc((size_t)size);
-    if (!b || !data) {
-        free(b);
-        free(data);
-        pf_w_log(w, PF_LOG_ERROR, "job %" PRIu64 ": cannot allocate %" PRIu64 " bytes for the %s blob", w->job->id,
-                 size, what);
+    if (!b) {
+        pf_w_log(w, PF_LOG_ERROR, "job %" PRIu64 ": out of memory for the %s blob", w->job->id, what);
         return NULL;
     }
     b->hash = hash;
     b->size = size;
-    b->data = data;
     b->used = ++w->tick;
     w->blobs[w->nblobs++] = b;
     pf_w_log(w, PF_LOG_INFO, "fetching the %s blob %016" PRIx64 " (%.1f MB)", what, hash, (double)size / 1e6);
@@ -190,6 +217,24 @@ static s_blob *s_blob_get(s_worker *w, uint64_t hash, uint64_t size, const char 
 }
 
 /* ---- jobs ---- */
+
+/* The TILEs a job holds (queued or rendering), against the credit READY
+ * announced: the index of (tile, attempt) in j->held_tiles, or -1. */
+static int s_tile_held(const s_job *j, uint32_t tile, uint32_t attempt)
+{
+    for (uint32_t i = 0; i < j->held; i++)
+        if (j->held_tiles[i].tile == tile && j->held_tiles[i].attempt == attempt)
+            return (int)i;
+    return -1;
+}
+
+/* The job no longer holds (tile, attempt): answered, discarded or cancelled. */
+static void s_tile_unhold(s_job *j, uint32_t tile, uint32_t attempt)
+{
+    int i = s_tile_held(j, tile, attempt);
+    if (i >= 0)
+        j->held_tiles[i] = j->held_tiles[--j->held];
+}
 
 /* Cancels the current job: its queued work leaves the queue, the tile being
  * rendered stops at the next row, and results still to come are discarded. */
@@ -204,9 +249,10 @@ void pf_w_job_drop(s_worker *w, const char *why)
     s_work *drop = pf_w_unqueue_job(w, j);
     while (drop) {
         s_work *next = drop->next;
-        if (drop->kind == S_WORK_TILE)
+        if (drop->kind == S_WORK_TILE) {
             w->tiles_held--;
-        else
+            s_tile_unhold(j, drop->tile.tile, drop->tile.attempt);
+        } else
             s_build_forget(w, drop);
         pf_w_work_free(drop);
         drop = next;
@@ -237,7 +283,7 @@ static void s_job_ready(s_worker *w, s_job *j, s_built *b)
     memset(&m, 0, sizeof m);
     m.type = PF_MSG_READY;
     m.job = j->id;
-    m.u.ready.credit = S_CREDIT;
+    m.u.ready.credit = PF_W_CREDIT;
     pf_w_send(w, &m, 0);
 }
 
@@ -333,6 +379,21 @@ void pf_w_on_chunk(s_worker *w, const pf_msg_blob_chunk_t *c)
                  PRIu64 "; dropped", c->hash, c->offset, c->len, b->received);
         return;
     }
+    if (s_blob_grow(b, b->received + c->len) != 0) {
+        char why[200];
+        snprintf(why, sizeof why, "cannot allocate %" PRIu64 " bytes for blob %016" PRIx64 " (%" PRIu64 " announced)",
+                 b->received + c->len, b->hash, b->size);
+        for (size_t i = 0; i < w->nblobs; i++)
+            if (w->blobs[i] == b && !b->pins) {
+                s_blob_remove(w, i);
+                break;
+            }
+        if (w->job && w->job->state == S_JOB_FETCH)
+            s_job_fail(w, w->job, why);
+        else
+            pf_w_log(w, PF_LOG_ERROR, "%s", why);
+        return;
+    }
     memcpy(b->data + b->received, c->data, c->len);
     b->received += c->len;
     b->last_chunk = pf_now();
@@ -369,6 +430,24 @@ void pf_w_on_chunk(s_worker *w, const pf_msg_blob_chunk_t *c)
     s_job_advance(w);
 }
 
+/* A TILE the coordinator may send: one of the current job's, beyond none of
+ * the credit announced in READY, not a copy of a lease already held. Else 0,
+ * after a warning (the coordinator is broken or hostile; nothing allocated). */
+static int s_tile_admissible(s_worker *w, const s_job *j, const pf_msg_tile_t *t)
+{
+    if (s_tile_held(j, t->tile, t->attempt) >= 0) {
+        pf_w_log(w, PF_LOG_WARN, "TILE %" PRIu32 " (attempt %" PRIu32 ") of job %" PRIu64 " sent again while this "
+                 "worker holds it; dropped", t->tile, t->attempt, j->id);
+        return 0;
+    }
+    if (j->held >= PF_W_CREDIT) {
+        pf_w_log(w, PF_LOG_WARN, "TILE %" PRIu32 " of job %" PRIu64 " is beyond the credit of %d tiles this worker "
+                 "announced (it holds %" PRIu32 "); dropped", t->tile, j->id, PF_W_CREDIT, j->held);
+        return 0;
+    }
+    return 1;
+}
+
 void pf_w_on_tile(s_worker *w, const pf_msg_t *m)
 {
     const pf_msg_tile_t *t = &m->u.tile;
@@ -394,6 +473,8 @@ void pf_w_on_tile(s_worker *w, const pf_msg_t *m)
                  t->x0, t->y0, W, H);
         return;
     }
+    if (!s_tile_admissible(w, j, t))
+        return;
     s_work *it = calloc(1, sizeof *it);
     float *rgb = malloc((size_t)t->w * t->h * 3 * sizeof *rgb);
     if (!it || !rgb) {
@@ -408,6 +489,9 @@ void pf_w_on_tile(s_worker *w, const pf_msg_t *m)
     it->tile = *t;
     it->rgb = rgb;
     w->tiles_held++;
+    j->held_tiles[j->held].tile = t->tile;
+    j->held_tiles[j->held].attempt = t->attempt;
+    j->held++;
     pf_w_enqueue(w, it);
 }
 
@@ -445,6 +529,7 @@ void pf_w_drain_done(s_worker *w)
             }
         } else {
             w->tiles_held--;
+            s_tile_unhold(j, it->tile.tile, it->tile.attempt);
             if (current && it->rendered && w->conn == S_ONLINE) {
                 pf_msg_t m;
                 memset(&m, 0, sizeof m);

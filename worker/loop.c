@@ -18,6 +18,15 @@
  * for 5 of its heartbeat intervals (or no WELCOME within 5 s of opening the
  * socket) means it is gone: the job is dropped, the socket closed, and a new
  * one opened after a backoff of 1 s doubling to 32 s (reset by a WELCOME).
+ * A refusal (REFUSE, or the coordinator's ZAP handler rejecting this
+ * worker's CURVE key with status 400) is treated the same way, with a
+ * backoff that doubles up to 300 s: the coordinator may be upgraded, or the
+ * key added to its list, and the worker then gets in without a restart.
+ * Each distinct refusal is logged once. Only a --exit-on-bye worker (started
+ * by a coordinator for one job) exits on a refusal. Strings from the peer
+ * (reasons) are logged through pf_log_printable, so they cannot carry
+ * terminal escapes or forge log lines.
+ *
  * A gap in the worker's own loop (the process was stopped) is not counted
  * as the coordinator's silence. The worker's HEARTBEAT carries a pixel
  * counter that the compute threads advance, so the coordinator can tell a
@@ -43,6 +52,7 @@
 #define S_HELLO_TIMEOUT_S 5.0     /* opening the socket to WELCOME */
 #define S_BACKOFF_MIN_S 1.0
 #define S_BACKOFF_MAX_S 32.0
+#define S_REFUSED_BACKOFF_MAX_S 300.0 /* after refusals: the coordinator's mind changes slowly */
 #define S_LINGER_MS 1000          /* time to flush a BYE at exit */
 #define S_MAX_RECV_PER_WAKE 256   /* messages handled before timers are looked at again */
 
@@ -98,6 +108,21 @@ static void s_close_socket(s_worker *w, int linger_ms)
     pf_w_outbox_clear(w);
 }
 
+/* 1 when endpoint stays on this host: ipc://, inproc://, or tcp:// to a
+ * loopback address (127.x.x.x, [::1], localhost). */
+static int s_endpoint_local(const char *endpoint)
+{
+    if (strncmp(endpoint, "ipc://", 6) == 0 || strncmp(endpoint, "inproc://", 9) == 0)
+        return 1;
+    if (strncmp(endpoint, "tcp://", 6) != 0)
+        return 0;
+    const char *host = endpoint + 6;
+    const char *semi = strchr(host, ';'); /* "source;destination": the destination counts */
+    if (semi)
+        host = semi + 1;
+    return strncmp(host, "127.", 4) == 0 || strncmp(host, "[::1]:", 6) == 0 || strncmp(host, "localhost:", 10) == 0;
+}
+
 /* Opens the DEALER socket and starts the handshake. 0, or an exit code when
  * the endpoint or the keys cannot be used at all. */
 static int s_open(s_worker *w)
@@ -145,6 +170,12 @@ static int s_open(s_worker *w)
         s_close_socket(w, 0);
         return e == EINVAL || e == EPROTONOSUPPORT || e == ENOCOMPATPROTO ? PF_WORKER_EXIT_USAGE : PF_WORKER_EXIT_FATAL;
     }
+    if (!w->curve && !w->plaintext_warned && !s_endpoint_local(w->opts->endpoint)) {
+        w->plaintext_warned = 1;
+        pf_w_log(w, PF_LOG_WARN, "connecting to %s without CURVE: the scene, the maps and the images cross the "
+                 "network in the clear, and whoever can reach this worker's traffic can pose as the coordinator "
+                 "(use --curve-key and --curve-server-key; see docs/cluster.md)", w->opts->endpoint);
+    }
     w->conn = S_HELLO;
     w->hello_sent = 0;
     w->opened = w->last_recv = pf_now();
@@ -164,12 +195,33 @@ static void s_lost(s_worker *w, pf_log_level level, const char *why)
     w->backoff_s = w->backoff_s * 2 > S_BACKOFF_MAX_S ? S_BACKOFF_MAX_S : w->backoff_s * 2;
 }
 
+/* The coordinator refused this worker (REFUSE, or CURVE authentication
+ * refused). A --exit-on-bye worker was started for one job: it exits (3).
+ * Any other closes the socket and tries again after the backoff, logging a
+ * refusal only when its reason differs from the last one logged. */
 static void s_refused(s_worker *w, const char *reason)
 {
-    fprintf(stderr, "photonfarm-worker: refused by %s: %s\n", w->opts->endpoint, reason);
-    pf_w_log(w, PF_LOG_DEBUG, "refused; exiting");
-    w->finished = 1;
-    w->exit_code = PF_WORKER_EXIT_REFUSED;
+    char shown[sizeof w->refusal];
+    pf_log_printable(shown, sizeof shown, reason);
+    if (w->opts->exit_on_bye) {
+        pf_w_log(w, PF_LOG_ERROR, "refused by %s: %s; --exit-on-bye: exiting", w->opts->endpoint, shown);
+        pf_w_job_drop(w, "refused");
+        w->finished = 1;
+        w->exit_code = PF_WORKER_EXIT_REFUSED;
+        return;
+    }
+    pf_w_job_drop(w, "refused");
+    s_close_socket(w, 0);
+    w->reconnect_at = pf_now() + w->backoff_s;
+    if (strcmp(shown, w->refusal) != 0) {
+        memcpy(w->refusal, shown, sizeof shown);
+        pf_w_log(w, PF_LOG_ERROR, "refused by %s: %s; trying again in %.0f s, then with a backoff doubling to "
+                 "%.0f s (the same refusal is not logged again)", w->opts->endpoint, shown, w->backoff_s,
+                 S_REFUSED_BACKOFF_MAX_S);
+    } else {
+        pf_w_log(w, PF_LOG_DEBUG, "refused again by %s; trying again in %.0f s", w->opts->endpoint, w->backoff_s);
+    }
+    w->backoff_s = w->backoff_s * 2 > S_REFUSED_BACKOFF_MAX_S ? S_REFUSED_BACKOFF_MAX_S : w->backoff_s * 2;
 }
 
 static void s_on_monitor(s_worker *w)
@@ -206,9 +258,9 @@ static void s_on_monitor(s_worker *w)
                          w->opts->endpoint, (unsigned)value);
                 break;
             }
-            char why[128];
+            char why[160];
             snprintf(why, sizeof why, "CURVE authentication failed (status %u): this worker's public key is not on "
-                     "the coordinator's list", (unsigned)value);
+                     "the coordinator's list (yet)", (unsigned)value);
             s_refused(w, why);
             return;
         }
@@ -231,9 +283,11 @@ static void s_on_message(s_worker *w, const uint8_t *frame, size_t len)
     w->last_recv = pf_now(); /* even garbage shows the peer is there */
     if (rc) {
         w->malformed++;
+        char shown[300];
         if (w->malformed <= 20 || w->malformed % 1000 == 0)
             pf_w_log(w, PF_LOG_WARN, "dropped %s message of %zu bytes from the coordinator (%u so far): %s",
-                     rc == PF_EMISMATCH ? "a foreign-version" : "a malformed", len, w->malformed, why);
+                     rc == PF_EMISMATCH ? "a foreign-version" : "a malformed", len, w->malformed,
+                     pf_log_printable(shown, sizeof shown, why));
         return;
     }
     if (w->conn == S_HELLO) {
@@ -243,6 +297,7 @@ static void s_on_message(s_worker *w, const uint8_t *frame, size_t len)
             w->served = 1;
             w->hb_ms = m.u.welcome.heartbeat_ms ? m.u.welcome.heartbeat_ms : 1000;
             w->backoff_s = S_BACKOFF_MIN_S;
+            w->refusal[0] = '\0'; /* a later refusal is news again */
             w->last_hb = 0; /* a first heartbeat right away */
             pf_w_log(w, PF_LOG_INFO, "registered with %s as worker %" PRIu32 " (%d threads, heartbeat %" PRIu32 " ms)",
                      w->opts->endpoint, m.u.welcome.worker_id, w->threads, w->hb_ms);
@@ -269,8 +324,10 @@ static void s_on_message(s_worker *w, const uint8_t *frame, size_t len)
             pf_w_log(w, PF_LOG_DEBUG, "JOB_END for job %" PRIu64 ", which is not the current job", m.job);
         }
         break;
-    case PF_MSG_BYE:
-        pf_w_log(w, PF_LOG_INFO, "the coordinator said goodbye (%s)", m.u.bye.reason);
+    case PF_MSG_BYE: {
+        char shown[300];
+        pf_w_log(w, PF_LOG_INFO, "the coordinator said goodbye (%s)",
+                 pf_log_printable(shown, sizeof shown, m.u.bye.reason));
         if (w->opts->exit_on_bye) {
             pf_w_job_drop(w, "BYE");
             w->finished = 1;
@@ -280,6 +337,7 @@ static void s_on_message(s_worker *w, const uint8_t *frame, size_t len)
             s_lost(w, PF_LOG_INFO, "the coordinator left");
         }
         break;
+    }
     default:
         pf_w_log(w, PF_LOG_WARN, "unexpected %s from the coordinator; dropped", pf_msg_type_name(m.type));
         break;

@@ -14,7 +14,7 @@ enum {
     PF_WORKER_EXIT_OK = 0,      /* stopped by a signal, or BYE with exit_on_bye */
     PF_WORKER_EXIT_FATAL = 1,   /* could not start (bad key file, no ZeroMQ context, ...) */
     PF_WORKER_EXIT_USAGE = 2,   /* (main.c only) bad command line */
-    PF_WORKER_EXIT_REFUSED = 3, /* the coordinator refused this worker (fingerprint, ...) */
+    PF_WORKER_EXIT_REFUSED = 3, /* refused by the coordinator with exit_on_bye (any other worker retries) */
 };
 
 typedef struct pf_worker_opts {
@@ -29,10 +29,12 @@ typedef struct pf_worker_opts {
     int fake_protocol;             /* tests only: announce this protocol version in HELLO (0: the real one) */
 } pf_worker_opts_t;
 
-/* Serves coordinators until *opts->stop is set, a BYE arrives with
- * exit_on_bye, or the coordinator refuses this worker. A coordinator that
- * goes silent for 5 heartbeat intervals is abandoned (current job dropped)
- * and contacted again with backoff 1 s doubling to 32 s. On stop the worker
+/* Serves coordinators until *opts->stop is set, or a BYE or a refusal
+ * arrives with exit_on_bye. A coordinator that goes silent for 5 heartbeat
+ * intervals is abandoned (current job dropped) and contacted again with
+ * backoff 1 s doubling to 32 s; one that refuses this worker (REFUSE, or its
+ * CURVE key not admitted) is contacted again with backoff 1 s doubling to
+ * 300 s, each distinct refusal logged once. On stop the worker
  * says BYE("signal"). Blocks; frees everything it allocated before
  * returning. Returns a PF_WORKER_EXIT_* code. */
 int pf_worker_run(const pf_worker_opts_t *opts);

@@ -1,8 +1,9 @@
 /* main.c: photonfarm-worker, a render-farm worker process. Parses the
  * command line, turns SIGINT/SIGTERM into a stop flag, and runs the worker
  * loop (worker/loop.h) until it ends. Exit codes: 0 normal end (signal, or
- * BYE with --exit-on-bye), 1 fatal error, 2 usage, 3 refused by the
- * coordinator. */
+ * BYE with --exit-on-bye), 1 fatal error (a key file unreadable, malformed
+ * or readable by others), 2 usage, 3 refused by the coordinator with
+ * --exit-on-bye (without it a refused worker keeps trying). */
 #include <errno.h>
 #include <getopt.h>
 #include <signal.h>
@@ -45,7 +46,10 @@ static void s_usage(FILE *f)
             "                                the coordinator refuse it\n"
             "\n"
             "The worker keeps serving coordinators, one job after another, until SIGINT or SIGTERM.\n"
-            "Exit codes: 0 normal end, 1 fatal error, 2 usage error, 3 refused by the coordinator.\n",
+            "A refused worker (another protocol version, a CURVE key not on the coordinator's list)\n"
+            "tries again with a backoff doubling to 300 s, so it gets in once the coordinator admits it.\n"
+            "Exit codes: 0 normal end, 1 fatal error (e.g. a key file unreadable, or readable by others),\n"
+            "2 usage error, 3 refused by the coordinator with --exit-on-bye.\n",
             PF_VERSION, PF_GIT_HASH, PF_PROTO_VERSION);
 }
 

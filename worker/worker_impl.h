@@ -34,7 +34,8 @@
 /* A blob (scene or maps) being received or held in the cache. */
 typedef struct s_blob {
     uint64_t hash, size;
-    uint8_t *data;
+    uint8_t *data;      /* grown as chunks arrive (never the announced size up front) */
+    uint64_t alloc;     /* bytes allocated at data */
     uint64_t received;  /* bytes received, in order, from offset 0 */
     uint64_t requested; /* end of the range asked for so far */
     int complete;       /* received and hash-checked */
@@ -55,6 +56,10 @@ typedef struct s_built {
 
 typedef enum { S_JOB_FETCH, S_JOB_BUILD, S_JOB_READY, S_JOB_FAILED } s_job_state;
 
+/* Tiles a worker asks for in READY (one rendering, two queued, so it never
+ * idles); a TILE beyond them is dropped without allocating its buffer. */
+#define PF_W_CREDIT 3
+
 typedef struct s_job {
     uint64_t id;
     pf_msg_job_t desc;
@@ -63,6 +68,10 @@ typedef struct s_job {
     pf_render_ctx_t ctx; /* once built; read-only for the compute thread */
     uint64_t dropped;    /* camera samples left out (ctx.dropped points here; atomic) */
     atomic_int cancelled;
+    uint32_t held;       /* TILEs of this job held (queued or rendering), at most PF_W_CREDIT */
+    struct {
+        uint32_t tile, attempt;
+    } held_tiles[PF_W_CREDIT];
     int refs;            /* the worker's current-job pointer and each work item; main thread only */
 } s_job;
 
@@ -122,6 +131,8 @@ typedef struct s_worker {
     uint32_t hb_ms;
     double backoff_s;
     int served; /* a coordinator has welcomed this worker at least once */
+    char refusal[300]; /* the last refusal logged (printable), so a repeated one is not logged again */
+    int plaintext_warned; /* the warning about a plaintext non-loopback endpoint was given */
     double reconnect_at;
     s_out *out, *out_tail;
     pf_buf_t enc;

@@ -148,8 +148,13 @@ else
             check "$u: exposure $level of 10 (<= 2.0, systemd-analyze security)" \
                 awk -v l="$level" 'BEGIN { exit !(l <= 2.0) }'
         done
-        check "the worker unit restarts on failure only, not on usage errors or a refusal" \
-            has "$UNITS/photonfarm-worker.service" '^RestartPreventExitStatus=2 3$'
+        # A refused worker no longer exits (it retries by itself, backoff up
+        # to 300 s), so only a usage error (2) is kept from restarting, and
+        # the unit must not make it a one-job worker (--exit-on-bye exits).
+        check "the worker unit restarts on failure only, not on usage errors (a refusal does not end it)" \
+            has "$UNITS/photonfarm-worker.service" '^Restart=on-failure$' &&
+            has "$UNITS/photonfarm-worker.service" '^RestartPreventExitStatus=2$' &&
+            hasnt "$UNITS/photonfarm-worker.service" '^ExecStart=.*exit-on-bye'
         for u in photonfarm-worker.service photonfarm-coordinator@.service; do
             for k in 'NoNewPrivileges=yes' 'ProtectSystem=strict' 'ProtectHome=yes' 'PrivateTmp=yes' \
                 'RestrictAddressFamilies=AF_INET AF_INET6 AF_UNIX' 'User=photonfarm' 'EnvironmentFile='; do
@@ -349,6 +354,9 @@ if [ "$exes_ok" = 1 ]; then
         for k in coordinator.key allowed-workers worker.key coordinator.pub; do
             secret_file "$T/secrets.yaml" "$k" "$T/sk/$k" || all=0
         done
+        # Secret key files must not be readable by others (the worker and the
+        # coordinator refuse them, like ssh).
+        chmod 600 "$T/sk/coordinator.key" "$T/sk/worker.key" 2>/dev/null
         check "the Secrets carry coordinator.key, allowed-workers, worker.key and coordinator.pub" eq "$all" 1
         check "no placeholder is left" hasnt "$T/secrets.yaml" '@[A-Z_]+@'
         csec=$(grep -E '^secret-key' "$T/sk/coordinator.key" | sed 's/.*= *//')

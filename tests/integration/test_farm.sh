@@ -21,7 +21,9 @@
 #  5. garbage, truncated, oversized, replayed and multi-frame messages from
 #     tests/integration/pf_inject.c during a render; results forged for tiles never leased
 #     to the sender (a known bug while the coordinator accepts them);
-#  6. a worker with another protocol version (--fake-protocol 99) is refused;
+#  6. a worker with another protocol version (--fake-protocol 99) is refused
+#     (it stays and retries, logging the refusal once; with --exit-on-bye it
+#     exits 3);
 #  7. CURVE: a listed key renders; an unlisted key and a plain worker never join;
 #  8. SIGINT to a coordinator with local workers: exit 130, no process left;
 #  9. --exit-on-bye workers leave at the end of the job; a long-lived worker
@@ -480,19 +482,35 @@ t5() {
 
 t6() {
     echo "# 6. a worker with another protocol version"
-    local proto port coord frc ww
+    local proto port coord frc ww fw
     proto=$(sed -n 's/^#define PF_PROTO_VERSION \([0-9]*\).*/\1/p' "$ROOT/proto/messages.h")
     port=$(free_port)
     coordinator proto_coord "$SPHERES" "$port" SMALL --min-workers 1
     coord=$LASTPID
-    timeout 30 "$PFW" --connect "tcp://127.0.0.1:$port" --threads 1 --name fake99 --fake-protocol 99 \
-        >"$T/fake.out" 2>"$T/fake.err"
-    frc=$?
-    check "6: the worker with protocol 99 exits 3 (refused) (exit $frc)" eq "$frc" 3 || show "$T/fake.err" 5
-    cat "$T/fake.out" "$T/fake.err" >"$T/fake.all"
+    # A refused worker stays and tries again (backoff 1 s, 2 s, ...), logging
+    # the refusal once; SIGTERM ends it (0). A one-job --exit-on-bye worker
+    # exits 3 on a refusal.
+    start fake99 "$PFW" --connect "tcp://127.0.0.1:$port" --threads 1 --name fake99 --fake-protocol 99 -v
+    fw=$LASTPID
+    check "6: the worker with protocol 99 is refused" wait_log "$T/fake99.err" 'refused by' 15 ||
+        show "$T/fake99.err" 5
+    check "6: the refused worker tries again" wait_log "$T/fake99.err" 'refused again' 10 ||
+        show "$T/fake99.err" 5
+    check "6: it logs the refusal once ($(grep -c 'refused by' "$T/fake99.err") times)" \
+        eq "$(grep -c 'refused by' "$T/fake99.err")" 1
+    check "6: the refused worker is still running" kill -0 "$fw"
+    kill -TERM "$fw" 2>/dev/null
+    wait_exit "$fw" 10
+    check "6: SIGTERM ends the refused worker with 0 (exit $rc)" eq "$rc" 0 || show "$T/fake99.err" 5
+    cat "$T/fake99.out" "$T/fake99.err" >"$T/fake.all"
     check "6: the worker's message names both versions (99 and $proto)" \
         grep -qE "99.*\b$proto\b|\b$proto\b.*99" "$T/fake.all"
     note "6: worker says: $(grep -iE 'refus|version' "$T/fake.all" | head -n 2 | tr '\n' ' ')"
+    timeout 30 "$PFW" --connect "tcp://127.0.0.1:$port" --threads 1 --name fake99x --fake-protocol 99 --exit-on-bye \
+        >"$T/fake_x.out" 2>"$T/fake_x.err"
+    frc=$?
+    check "6: with --exit-on-bye the worker with protocol 99 exits 3 (refused) (exit $frc)" eq "$frc" 3 ||
+        show "$T/fake_x.err" 5
     check "6: the coordinator logs the refusal" wait_log "$T/proto_coord.err" 'refused worker fake99' 5
     check "6: the refused worker never joined" hasnt "$T/proto_coord.err" 'worker fake99 joined'
     worker proto_w "$port" --exit-on-bye
@@ -549,9 +567,12 @@ t7() {
     check "7: the summary counts refusals ($(num "$T/curve_coord.err" refused) refused)" \
         ge "$(num "$T/curve_coord.err" refused)" 1
     wait_exit "$pb" 15
-    note "7: the unlisted worker ended with exit $rc (124: still trying at its timeout):" \
+    note "7: the unlisted worker ended with exit $rc (124: still trying at its timeout, as a refused worker does):" \
         "$(grep -iE 'refus|auth|denied' "$T/curve_b.err" | head -n 1)"
     check "7: the unlisted worker did not end as if it had served (exit $rc)" test "$rc" -ne 0
+    check "7: the unlisted worker kept trying until stopped (exit $rc, 124)" eq "$rc" 124
+    check "7: the unlisted worker logs its refusal once ($(grep -c 'refused by' "$T/curve_b.err") times)" \
+        eq "$(grep -c 'refused by' "$T/curve_b.err")" 1
     wait_exit "$pp" 15
     note "7: the worker without CURVE ended with exit $rc: $(grep -iE 'handshake|curve' "$T/curve_plain.err" | head -n 1)"
     wait_exit "$wa" 10

@@ -1,6 +1,7 @@
 /* test_worker.c: the worker side of the farm, in two ctests chosen by argv[1]:
  *
  *   keyfile    base/keyfile: write/read round trips, 0600 on secret files,
+ *              secret files readable by others refused,
  *              public-only files, allowed-key lists (bare and `public-key =`
  *              lines, comments, a key that starts with '#'), and malformed
  *              files whose errors must name file and line.
@@ -18,10 +19,16 @@
  *              (exit 0); BYE without it and a silent coordinator
  *              (re-registration), but not after the worker itself was
  *              stopped (SIGSTOP/SIGCONT); SIGTERM (BYE "signal",
- *              exit 0); REFUSE of a --fake-protocol worker (exit 3 with the
- *              reason); CURVE with a ZAP handler here that admits one key
- *              (the worker registers) and refuses another (exit 3); usage
- *              errors (exit 2, or 1 for unreadable key files).
+ *              exit 0); REFUSE of a --fake-protocol worker (it tries again
+ *              with backoff, logs the reason once with its escapes
+ *              escaped, registers when welcomed, exits 0 on SIGTERM; with
+ *              --exit-on-bye it exits 3); CURVE with a ZAP handler here
+ *              that admits one key (the worker registers) and refuses
+ *              another (exit 3 with --exit-on-bye; without it the worker
+ *              retries and registers once its key is admitted); a key pair
+ *              file readable by others (exit 1, "chmod 600"); usage errors
+ *              (exit 2, or 1 for unreadable key files); the warning of a
+ *              worker without CURVE on a non-loopback endpoint (once).
  *
  * Every wait is bounded by zmq_poll timeouts and an overall alarm; the child
  * is killed and reaped on every path.

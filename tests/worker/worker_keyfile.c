@@ -2,7 +2,8 @@
  * files (the keyfile ctest): write/read round trips, 0600 on secret files,
  * public-only files, allowed-key lists (bare and `public-key =` lines,
  * comments, a key that starts with '#'), and malformed files whose errors
- * must name file and line. Files live in a fresh directory under /tmp. */
+ * must name file and line, and secret key files others can read, refused
+ * with their mode and the chmod that fixes them. Files live in a fresh directory under /tmp. */
 #include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -22,6 +23,7 @@ static void s_write_text(const char *path, const char *text)
         fputs(text, f);
         fclose(f);
     }
+    chmod(path, 0600); /* some of these hold a secret: private, as keygen writes them */
 }
 
 /* The error names the file and this line ("path:line: ..."). */
@@ -75,6 +77,46 @@ static void s_keyfile_round_trips(const char *pair, const char *pub, const char 
     s_write_text(bad, text);
     CHECK(pf_keyfile_read(bad, p, s, &err) == 0 && strcmp(p, P) == 0 && strcmp(s, S) == 0, "lenient layout: %s",
           err.msg);
+}
+
+/* Secret key files with loose modes are refused (like ssh): the error names
+ * the file, its mode and the fix; public keys may be readable by anyone. */
+static void s_keyfile_modes(const char *pair, const char *pub)
+{
+    pf_error_t err;
+    char p[41], s[41];
+    CHECK(pf_keyfile_write(pair, P, S, &err) == 0, "write pair: %s", err.msg);
+    static const unsigned bad_modes[] = { 0644, 0604, 0606, 0660, 0640, 0670, 0777 };
+    for (size_t i = 0; i < sizeof bad_modes / sizeof bad_modes[0]; i++) {
+        chmod(pair, bad_modes[i]);
+        char mode[16], fix[700];
+        snprintf(mode, sizeof mode, "(mode %04o)", bad_modes[i]);
+        snprintf(fix, sizeof fix, "chmod 600 %.600s", pair);
+        memset(s, 0, sizeof s);
+        int rc = pf_keyfile_read(pair, p, s, &err);
+        CHECK(rc == PF_EIO && strncmp(err.msg, pair, strlen(pair)) == 0 && strstr(err.msg, mode) &&
+                  strstr(err.msg, fix) && s[0] == '\0',
+              "mode %04o: rc %d, %s", bad_modes[i], rc, err.msg);
+    }
+    chmod(pair, 0644);
+    CHECK(pf_keyfile_read(pair, p, s, &err) == PF_EIO && strstr(err.msg, "readable by others"),
+          "0644 says readable by others: %s", err.msg);
+    /* Only its public half wanted: a readable pair file is read. */
+    CHECK(pf_keyfile_read(pair, p, NULL, &err) == 0 && strcmp(p, P) == 0, "public half of a 0644 pair: %s", err.msg);
+    static const unsigned good_modes[] = { 0600, 0400, 0700 };
+    for (size_t i = 0; i < sizeof good_modes / sizeof good_modes[0]; i++) {
+        chmod(pair, good_modes[i]);
+        CHECK(pf_keyfile_read(pair, p, s, &err) == 0 && strcmp(s, S) == 0, "mode %04o accepted: %s", good_modes[i],
+              err.msg);
+    }
+    chmod(pair, 0600);
+    /* A public key file and a list readable by all are fine. */
+    CHECK(pf_keyfile_write(pub, P, NULL, &err) == 0 && chmod(pub, 0644) == 0, "write public: %s", err.msg);
+    CHECK(pf_keyfile_read(pub, p, NULL, &err) == 0 && strcmp(p, P) == 0, "0644 public key: %s", err.msg);
+    char(*keys)[41] = NULL;
+    size_t n = 0;
+    CHECK(pf_keyfile_read_list(pub, &keys, &n, &err) == 0 && n == 1, "0644 list: %s", err.msg);
+    free(keys);
 }
 
 /* Malformed key files: the error names file and line. */
@@ -180,6 +222,7 @@ void wt_test_keyfile(void)
     snprintf(bad, sizeof bad, "%s/bad.key", dir);
     snprintf(list, sizeof list, "%s/allowed.txt", dir);
     s_keyfile_round_trips(pair, pub, bad);
+    s_keyfile_modes(pair, pub);
     s_keyfile_malformed(bad);
     s_keyfile_lists(list);
 

@@ -2,11 +2,13 @@
  * photonfarm-worker, each on a scripted coordinator of its own
  * (worker_harness.c): a render with corrupted and repeated blobs, garbage
  * frames and rejected maps; reconnection after BYE and silence, but not
- * after a SIGSTOP; a coordinator gone for good; REFUSE; CURVE admission;
- * usage errors. test_worker.c lists what each checks. Every wait is bounded;
+ * after a SIGSTOP; a coordinator gone for good; REFUSE (retried, or the end
+ * with --exit-on-bye); CURVE admission, also of a key added later; a key
+ * file readable by others; usage errors. test_worker.c lists what each checks. Every wait is bounded;
  * a run that fails a check prints the worker's log. */
 #include <signal.h>
 #include <stdint.h>
+#include <sys/stat.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -154,6 +156,80 @@ static void s_render_foreign_maps(wt_coord_t *c, const wt_fixture_t *fx, pf_msg_
         CHECK(m->job == 4 && m->u.result.tile == 1 && wt_result_matches(fx, &m->u.result), "job 4 tile 1 identical");
 }
 
+/* The credit READY announced (3) is enforced: with the worker stopped, five
+ * TILEs of job 4 queue up (tiles 0, 2, a copy of 2, 3 and 4); once it runs
+ * again it renders the first three distinct ones and drops the copy and the
+ * one beyond its credit. */
+static void s_render_credit(wt_coord_t *c, const wt_fixture_t *fx, pf_msg_t *m, pid_t pid)
+{
+    if (pid <= 0)
+        return;
+    kill(pid, SIGSTOP);
+    static const int tiles[5][5] = {
+        { 0, 0, 0, 16, 16 }, { 2, 32, 0, 8, 16 }, { 2, 32, 0, 8, 16 }, { 3, 0, 16, 16, 12 }, { 4, 16, 16, 16, 12 },
+    };
+    for (int i = 0; i < 5; i++) {
+        pf_msg_t tm = wt_tile_msg(4, (uint32_t)tiles[i][0], 2, tiles[i][1], tiles[i][2], tiles[i][3], tiles[i][4]);
+        wt_send_msg(c, &tm);
+    }
+    usleep(300000);
+    kill(pid, SIGCONT);
+    int got[5] = { 0 }, results = 0, others = 0;
+    while (wt_next(c, 3.0, m)) {
+        if (m->type == PF_MSG_RESULT && m->job == 4 && m->u.result.tile < 5 && wt_result_matches(fx, &m->u.result)) {
+            got[m->u.result.tile]++;
+            results++;
+        } else {
+            others++;
+        }
+    }
+    CHECK(results == 3 && got[0] == 1 && got[2] == 1 && got[3] == 1 && others == 0,
+          "credit 3: %d RESULTs (tiles 0/2/3/4: %d %d %d %d), %d other messages; want tiles 0, 2 and 3 once", results,
+          got[0], got[2], got[3], got[4], others);
+}
+
+/* The worker's virtual size in KiB (/proc/PID/status VmSize), or 0. */
+static unsigned long long s_vm_kib(pid_t pid)
+{
+    char path[64];
+    snprintf(path, sizeof path, "/proc/%d/status", (int)pid);
+    char *st = wt_read_file(path);
+    const char *v = st ? strstr(st, "VmSize:") : NULL;
+    unsigned long long kib = v ? strtoull(v + 7, NULL, 10) : 0;
+    free(st);
+    return kib;
+}
+
+/* Job 5 announces a 60 GiB scene (the same hash, so the chunks served here,
+ * of the real blob, do not fit it and are dropped): the worker must accept
+ * the job and allocate nothing for the blob until data arrives (the buffer
+ * grows with the chunks), not 60 GiB up front. */
+static void s_render_lying_job(wt_coord_t *c, const wt_fixture_t *fx, pf_msg_t *m, pid_t pid)
+{
+    if (pid <= 0)
+        return;
+    pf_msg_t jm;
+    memset(&jm, 0, sizeof jm);
+    jm.type = PF_MSG_JOB;
+    jm.job = 5;
+    jm.u.job.scene_hash = fx->scene_hash;
+    jm.u.job.scene_size = UINT64_C(60) << 30;
+    jm.u.job.maps_hash = fx->maps_hash;
+    jm.u.job.maps_size = fx->maps_blob.len;
+    jm.u.job.settings = fx->settings;
+    jm.u.job.terms = fx->terms;
+    jm.u.job.tile_size = (uint32_t)fx->tile;
+    wt_send_msg(c, &jm);
+    CHECK(wt_quiet(c, 1.0, m), "job 5 (a 60 GiB scene) answered with %s", pf_msg_type_name(m->type));
+    unsigned long long kib = s_vm_kib(pid);
+    CHECK(kib > 0 && kib < (8ULL << 20), "after a JOB announcing 60 GiB the worker maps %llu KiB", kib);
+    char *log = wt_read_file(wt_log_path);
+    CHECK(log && strstr(log, "(64424.5 MB)") && !strstr(log, "cannot allocate"),
+          "job 5 is fetched, nothing allocated up front");
+    free(log);
+    wt_send_simple(c, PF_MSG_JOB_END, 5);
+}
+
 /* BYE ends an --exit-on-bye worker with 0; its log says why it rejected job 3. */
 static void s_render_bye(wt_coord_t *c)
 {
@@ -163,6 +239,9 @@ static void s_render_bye(wt_coord_t *c)
     char *log = wt_read_file(wt_log_path);
     CHECK(log && strstr(log, "job 3: photon-map blob") && strstr(log, "taking no tiles"),
           "the worker logs why it rejects job 3");
+    CHECK(log && strstr(log, "TILE 4 of job 4 is beyond the credit of 3 tiles") &&
+              strstr(log, "TILE 2 (attempt 2) of job 4 sent again while this worker holds it"),
+          "the worker logs the TILEs it dropped");
     free(log);
 }
 
@@ -178,13 +257,15 @@ void wt_run_render(const char *exe, const wt_fixture_t *fx)
     wt_coord_serve(&c, fx);
     const char *args[] = { "--connect", c.endpoint, "--threads", "2", "--name", "test-worker", "--exit-on-bye", "-v",
                            NULL };
-    wt_start_worker(exe, args);
+    pid_t pid = wt_start_worker(exe, args);
     pf_msg_t m;
     uint32_t credit;
     if (s_render_hello(&c, &m) && s_render_job1(&c, fx, &m, &credit)) {
         s_render_garbage(&c, fx, &m);
         s_render_job2(&c, fx, &m, credit);
         s_render_foreign_maps(&c, fx, &m);
+        s_render_credit(&c, fx, &m, pid);
+        s_render_lying_job(&c, fx, &m, pid);
         s_render_bye(&c);
     }
     wt_end_run("render", fails);
@@ -282,7 +363,30 @@ out:
     wt_coord_close(&c);
 }
 
-/* Run C: REFUSE ends the worker with exit code 3 and the reason. */
+/* How many times needle occurs in hay. */
+static int s_count(const char *hay, const char *needle)
+{
+    int n = 0;
+    for (const char *p = hay ? strstr(hay, needle) : NULL; p; p = strstr(p + 1, needle))
+        n++;
+    return n;
+}
+
+/* Sends a REFUSE whose reason carries a terminal escape and a forged line. */
+static void s_send_refuse(wt_coord_t *c)
+{
+    pf_msg_t m;
+    memset(&m, 0, sizeof m);
+    m.type = PF_MSG_REFUSE;
+    snprintf(m.u.refuse.reason, sizeof m.u.refuse.reason,
+             "protocol version 2 (worker) vs 1 (coordinator)\x1b[31m\nerror: forged");
+    wt_send_msg(c, &m);
+}
+
+/* Run C: a REFUSE does not end a long-lived worker: it tries again with
+ * backoff (1 s, then 2 s), logs the refusal once with its control bytes
+ * escaped, registers when the coordinator admits it, and leaves on SIGTERM.
+ * With --exit-on-bye (a local one-job worker) a REFUSE still ends it (3). */
 void wt_run_refuse(const char *exe)
 {
     int fails = pf_test_failures();
@@ -292,25 +396,118 @@ void wt_run_refuse(const char *exe)
         return;
     }
     const char *args[] = { "--connect", c.endpoint, "--fake-protocol", "2", NULL };
-    wt_start_worker(exe, args);
+    pid_t pid = wt_start_worker(exe, args);
     pf_msg_t m;
     if (wt_expect(&c, PF_MSG_HELLO, 15, &m, "refuse run")) {
         CHECK(m.u.hello.fp.protocol == 2, "--fake-protocol 2 announces protocol %u", m.u.hello.fp.protocol);
-        memset(&m, 0, sizeof m);
-        m.type = PF_MSG_REFUSE;
-        snprintf(m.u.refuse.reason, sizeof m.u.refuse.reason, "protocol version 2 (worker) vs 1 (coordinator)");
-        wt_send_msg(&c, &m);
+        s_send_refuse(&c);
+        double t0 = pf_now();
+        int again = wt_expect(&c, PF_MSG_HELLO, 6, &m, "HELLO again after a REFUSE");
+        double t1 = pf_now();
+        CHECK(!again || t1 - t0 > 0.5, "the second HELLO came %.2f s after the REFUSE (backoff 1 s)", t1 - t0);
+        if (again) {
+            s_send_refuse(&c);
+            again = wt_expect(&c, PF_MSG_HELLO, 8, &m, "HELLO a third time");
+            CHECK(!again || pf_now() - t1 > 1.5, "the third HELLO came %.2f s after the second REFUSE (backoff 2 s)",
+                  pf_now() - t1);
+        }
+        if (again) {
+            wt_send_welcome(&c, 7);
+            CHECK(wt_quiet(&c, 0.5, &m) || m.type == PF_MSG_BYE, "the admitted worker sent %s",
+                  pf_msg_type_name(m.type));
+        }
+        if (pid > 0)
+            kill(pid, SIGTERM);
         int code = wt_wait_worker(10);
-        CHECK(code == 3, "REFUSE: exit code %d", code);
+        CHECK(code == 0, "a refused, then admitted worker stopped by SIGTERM: exit code %d", code);
         char *log = wt_read_file(wt_log_path);
         char want[512];
-        snprintf(want, sizeof want, "photonfarm-worker: refused by %s: protocol version 2 (worker) vs 1 (coordinator)",
-                 c.endpoint);
-        CHECK(log && strstr(log, want), "the refusal is printed: want '%s'", want);
+        snprintf(want, sizeof want, "refused by %s: protocol version 2 (worker) vs 1 (coordinator)\\x1b[31m\\x0aerror: "
+                 "forged; trying again in 1 s", c.endpoint);
+        CHECK(log && strstr(log, want), "the refusal is printed, escaped: want '%s'", want);
+        CHECK(s_count(log, "refused by") == 1, "the same refusal logged %d times (want once)", s_count(log, "refused by"));
+        CHECK(log && !strchr(log, '\x1b') && !strstr(log, "\nerror: forged"), "a raw escape or forged line in the log");
+        CHECK(log && strstr(log, "registered with"), "the worker registered once admitted");
+        CHECK(log && !strstr(log, "without CURVE"), "a loopback worker warned about plaintext");
         free(log);
     }
     wt_end_run("refuse", fails);
     wt_coord_close(&c);
+
+    /* --exit-on-bye: a REFUSE ends the worker with exit code 3. */
+    fails = pf_test_failures();
+    if (wt_coord_open(&c, NULL)) {
+        CHECK(0, "cannot bind the test coordinator");
+        return;
+    }
+    const char *args1[] = { "--connect", c.endpoint, "--fake-protocol", "2", "--exit-on-bye", NULL };
+    wt_start_worker(exe, args1);
+    if (wt_expect(&c, PF_MSG_HELLO, 15, &m, "refuse run, --exit-on-bye")) {
+        s_send_refuse(&c);
+        int code = wt_wait_worker(10);
+        CHECK(code == 3, "REFUSE with --exit-on-bye: exit code %d", code);
+        char *log = wt_read_file(wt_log_path);
+        CHECK(log && strstr(log, "refused by") && strstr(log, "--exit-on-bye: exiting"),
+              "the refusal and the exit are printed");
+        free(log);
+    }
+    wt_end_run("refuse-exit-on-bye", fails);
+    wt_coord_close(&c);
+}
+
+/* Run F: a worker whose key the coordinator does not admit yet keeps
+ * trying (each ZAP denial is a refusal, logged once) and registers once the
+ * key is added; SIGTERM then ends it (0). */
+static void s_run_curve_late(const char *exe, const char *server_sec, const char *key_pub, const char *kpath,
+                             const char *spath)
+{
+    int fails = pf_test_failures();
+    wt_coord_t c;
+    if (wt_coord_open(&c, server_sec)) {
+        CHECK(0, "cannot bind the CURVE test coordinator");
+        return;
+    }
+    snprintf(c.allowed, sizeof c.allowed, "%s", "not-yet");
+    const char *args[] = { "--connect", c.endpoint, "--curve-key", kpath, "--curve-server-key", spath, NULL };
+    pid_t pid = wt_start_worker(exe, args);
+    pf_msg_t m;
+    CHECK(!wt_next(&c, 2.5, &m), "a key not yet admitted got a message through");
+    CHECK(c.zap_denied >= 2, "ZAP denied %d times in 2.5 s (the worker retries)", c.zap_denied);
+    snprintf(c.allowed, sizeof c.allowed, "%s", key_pub); /* the key is added to the list */
+    if (wt_expect(&c, PF_MSG_HELLO, 10, &m, "CURVE, key added later")) {
+        wt_send_welcome(&c, 3);
+        CHECK(wt_quiet(&c, 0.3, &m), "CURVE worker sent %s", pf_msg_type_name(m.type));
+    }
+    if (pid > 0)
+        kill(pid, SIGTERM);
+    int code = wt_wait_worker(10);
+    CHECK(code == 0, "CURVE, key added later, SIGTERM: exit code %d", code);
+    char *log = wt_read_file(wt_log_path);
+    CHECK(log && s_count(log, "refused by") == 1 && strstr(log, "CURVE"), "the CURVE refusal logged %d times (want once)",
+          s_count(log, "refused by"));
+    CHECK(log && strstr(log, "registered with"), "the worker registered once its key was admitted");
+    free(log);
+    wt_end_run("curve-late", fails);
+    wt_coord_close(&c);
+}
+
+/* Run G: a key pair file readable by others is refused at start (exit 1,
+ * naming the file, its mode and the fix). */
+static void s_run_key_mode(const char *exe, const char *kpath, const char *spath)
+{
+    int fails = pf_test_failures();
+    chmod(kpath, 0644);
+    const char *args[] = { "--connect", "tcp://127.0.0.1:1", "--curve-key", kpath, "--curve-server-key", spath, NULL };
+    wt_start_worker(exe, args);
+    int code = wt_wait_worker(10);
+    CHECK(code == 1, "a 0644 key pair file: exit code %d", code);
+    char *log = wt_read_file(wt_log_path);
+    char want[700];
+    snprintf(want, sizeof want, "readable by others (mode 0644): chmod 600 %.600s", kpath);
+    CHECK(log && strstr(log, want), "the error says: want '%s'", want);
+    free(log);
+    chmod(kpath, 0600);
+    wt_end_run("key-mode", fails);
 }
 
 /* Runs D and E: CURVE with a ZAP handler that admits one client key. */
@@ -372,11 +569,32 @@ void wt_run_curve(const char *exe)
         wt_end_run(run == 0 ? "curve-listed" : "curve-unlisted", fails);
         wt_coord_close(&c);
     }
+    s_run_curve_late(exe, server_sec, bad_pub, bpath, spath);
+    s_run_key_mode(exe, bpath, spath);
     unlink(spath), unlink(gpath), unlink(bpath);
     rmdir(dir);
 }
 
-/* Usage errors and --help, without a coordinator. */
+/* A worker without CURVE warns once when its endpoint is not on loopback
+ * (192.0.2.1 is TEST-NET-1: never reached; it keeps trying until SIGTERM). */
+static void s_run_plaintext(const char *exe)
+{
+    int fails = pf_test_failures();
+    const char *args[] = { "--connect", "tcp://192.0.2.1:7878", NULL };
+    pid_t pid = wt_start_worker(exe, args);
+    usleep(700000);
+    if (pid > 0)
+        kill(pid, SIGTERM);
+    int code = wt_wait_worker(10);
+    CHECK(code == 0, "plaintext worker stopped by SIGTERM: exit code %d", code);
+    char *log = wt_read_file(wt_log_path);
+    CHECK(log && s_count(log, "without CURVE") == 1, "the plaintext warning given %d times (want once)",
+          s_count(log, "without CURVE"));
+    free(log);
+    wt_end_run("plaintext", fails);
+}
+
+/* Usage errors and --help, without a coordinator; the plaintext warning. */
 void wt_run_usage(const char *exe)
 {
     struct {
@@ -402,4 +620,5 @@ void wt_run_usage(const char *exe)
               code, cases[i].code);
         wt_end_run("usage", fails);
     }
+    s_run_plaintext(exe);
 }
