@@ -10,7 +10,8 @@
  * registry.c; tiles, the queue and leases in leases.c; the framed blobs and
  * the per-worker transfer windows in transfer.c; the conversation with the
  * workers (what a message is worth, leasing, strikes, eviction) in
- * farm_peers.c. This file is the photon thread, the event loop, the
+ * farm_peers.c; spot checks of results on a second worker in verify.c.
+ * This file is the photon thread, the event loop, the
  * housekeeping (when a worker is dead, stuck, or its lease expired) and the
  * job's steps.
  *
@@ -30,7 +31,11 @@
  * worker it is a strike, as is a message out of turn, an expired lease or a
  * stall; past max_strikes the worker is evicted: BYE, its tiles re-queued,
  * its slot freed, its routing identity, name and CURVE key blocked until the
- * job ends. */
+ * job ends. A worker caught returning wrong pixels (verify.c) is evicted the
+ * same way and every tile it delivered is rendered again.
+ *
+ * Without --bind the socket is ipc:// in a private 0700 directory (only the
+ * local workers connect), removed at the end. */
 #include "coordinator/farm.h"
 
 #include <errno.h>
@@ -192,6 +197,7 @@ void pf_farm_opts_default(pf_farm_opts_t *o)
     o->credit_per_thread = 2;
     o->takeover_factor = 4.0;
     o->takeover_min_s = 2.0;
+    o->verify = 0.02;
 }
 
 static int s_loopback(const char *ep)
@@ -212,7 +218,7 @@ static int s_alloc_tables(pf_fm_t *f, const pf_settings_t *s, pf_error_t *err)
         return pf_error_set(err, PF_ENOMEM, NULL, 0, "out of memory");
     f->xfer = pf_xfer_new(maxw, o->blob_window);
     f->pix = malloc((size_t)f->ts * (size_t)f->ts * 3 * sizeof *f->pix);
-    if (!f->xfer || !f->pix)
+    if (!f->xfer || !f->pix || pf_fm_verify_init(f) != PF_OK)
         return pf_error_set(err, PF_ENOMEM, NULL, 0, "out of memory");
     return PF_OK;
 }
@@ -242,8 +248,42 @@ static int s_setup_curve(pf_fm_t *f, pf_error_t *err)
     return PF_OK;
 }
 
-/* The ROUTER socket, with CURVE and its ZAP handler when asked, bound; its
- * endpoint lands in f->endpoint. */
+/* Without --bind, only local workers connect: an ipc:// socket in a
+ * private directory (mkdtemp: mode 0700) under $XDG_RUNTIME_DIR or /tmp,
+ * which no other user can reach, removed at the end (s_free). Falls back to
+ * tcp://127.0.0.1:* when no such directory can be made. */
+static const char *s_private_ipc(pf_fm_t *f, char *ep, size_t cap)
+{
+    const char *bases[2] = { getenv("XDG_RUNTIME_DIR"), "/tmp" };
+    for (int i = 0; i < 2; i++) {
+        if (!bases[i] || bases[i][0] != '/')
+            continue;
+        /* The socket's path must fit in sun_path (108 bytes). */
+        int n = snprintf(f->ipcdir, sizeof f->ipcdir, "%s/photonfarm-XXXXXX", bases[i]);
+        if (n <= 0 || n + (int)sizeof "/farm" > 100 || !mkdtemp(f->ipcdir)) {
+            f->ipcdir[0] = 0;
+            continue;
+        }
+        snprintf(ep, cap, "ipc://%s/farm", f->ipcdir);
+        return ep;
+    }
+    pf_warn("cannot make a private directory for the local workers' socket (%s): using loopback TCP",
+            strerror(errno));
+    return "tcp://127.0.0.1:*";
+}
+
+/* The ipc:// socket's file and private directory, when there is one. */
+static void s_remove_ipc(pf_fm_t *f)
+{
+    if (!f->ipcdir[0])
+        return;
+    char path[192];
+    snprintf(path, sizeof path, "%s/farm", f->ipcdir);
+    if ((unlink(path) != 0 && errno != ENOENT) || rmdir(f->ipcdir) != 0)
+        pf_warn("cannot remove %s: %s", f->ipcdir, strerror(errno));
+    f->ipcdir[0] = 0;
+}
+
 /* The ROUTER socket, with CURVE and its ZAP handler when asked, bound; its
  * endpoint lands in f->endpoint. The queues are small (send_hwm messages a
  * peer; blob chunks are windowed apart, see transfer.h) and no frame from a
@@ -270,7 +310,8 @@ static int s_open_socket(pf_fm_t *f, pf_error_t *err)
         if (rc != PF_OK)
             return rc;
     }
-    const char *bind = opts->bind ? opts->bind : "tcp://127.0.0.1:*";
+    char ipc[256];
+    const char *bind = opts->bind ? opts->bind : s_private_ipc(f, ipc, sizeof ipc);
     if (zmq_bind(f->sock, bind) != 0)
         return pf_error_set(err, PF_EIO, NULL, 0, "cannot bind %s: %s", bind, zmq_strerror(zmq_errno()));
     size_t eplen = sizeof f->endpoint;
@@ -479,6 +520,7 @@ static int s_event_loop(pf_fm_t *f, volatile int *stop, pf_error_t *err)
         if (pr > 0)
             s_recv_burst(f);
         s_tick(f);
+        pf_fm_verify_tick(f);
         if (f->job_ready)
             pf_fm_lease_all(f);
         int alive = s_count_alive(f);
@@ -547,23 +589,30 @@ static void s_sum_up(pf_fm_t *f)
  * still hold chunk frames that point into its blobs. */
 static void s_free(pf_fm_t *f)
 {
-    if (f->ph_started) {
-        pthread_join(f->phtid, NULL); /* the photon pass cannot be cancelled midway; it ends on its own */
-    }
     if (f->npids)
         pf_spawn_stop_all(f->pids, f->npids, 3.0);
+    if (f->ph_started) {
+        /* The photon pass cannot be cancelled midway (it checks no flag);
+         * it ends on its own. Say so rather than wait silently. */
+        if (!__atomic_load_n(&f->ph.done, __ATOMIC_ACQUIRE))
+            pf_warn("stopping: the photon pass cannot be interrupted; exiting when it ends (%.0f s in so far)",
+                    pf_now() - f->t0);
+        pthread_join(f->phtid, NULL);
+    }
     if (f->sock)
         zmq_close(f->sock);
     if (f->zap)
         f->sum->refused += (uint64_t)pf_zap_stop(&f->zap);
     if (f->ctx)
         zmq_ctx_term(f->ctx);
+    s_remove_ipc(f);
     pf_xfer_destroy(&f->xfer);
     pf_frame_close(&f->ph.frame);
     pf_framed_blob_free(&f->ph.scene_fb);
     pf_framed_blob_free(&f->ph.maps_fb);
     pf_buf_free(&f->out);
     free(f->pix);
+    pf_fm_verify_free(f);
     pf_leases_free(&f->L);
     pf_registry_free(&f->reg);
 }
@@ -627,6 +676,12 @@ void pf_farm_summary_log(const pf_farm_summary_t *s)
             (unsigned long long)s->hellos_dropped, (unsigned long long)s->blocked, (unsigned long long)s->blob_ignored,
             (unsigned long long)s->results_refused, (unsigned long long)s->expired, (unsigned long long)s->stalls,
             (unsigned long long)s->takeovers, (unsigned long long)s->slots_reused);
+    if (s->verified || s->mismatches)
+        pf_info("verify: %llu tile%s checked (%llu rendered here), %llu mismatch%s, %s%s%s, %llu tiles re-rendered",
+                (unsigned long long)s->verified, s->verified == 1 ? "" : "s", (unsigned long long)s->verify_local,
+                (unsigned long long)s->mismatches, s->mismatches == 1 ? "" : "es",
+                s->liars ? (s->liars == 1 ? "worker " : "workers ") : "no worker evicted",
+                s->liars ? s->liar_names : "", s->liars ? " evicted" : "", (unsigned long long)s->rerendered);
     for (int i = 0; i < s->nper_worker; i++)
         pf_info("summary: worker %s rendered %llu tiles", s->per_worker[i].name,
                 (unsigned long long)s->per_worker[i].tiles);

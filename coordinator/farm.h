@@ -15,7 +15,8 @@
 #include "scene/scene.h"
 
 typedef struct pf_farm_opts {
-    const char *bind;         /* endpoint to bind; NULL: tcp://127.0.0.1:* (loopback, ephemeral port) */
+    const char *bind;         /* endpoint to bind; NULL: ipc:// in a private 0700 directory, for the local
+                                 workers only (tcp://127.0.0.1:* when no directory can be made) */
     int local_workers;        /* worker processes to start on this machine */
     int worker_threads;       /* threads per local worker (0: cores / workers, at least 1) */
     int min_workers;          /* tiles are not leased before this many workers are ready */
@@ -45,6 +46,9 @@ typedef struct pf_farm_opts {
     double takeover_factor;   /* with the queue empty, a lease older than this many typical tile times (and
                                  takeover_min_s) goes to an idle worker that never held it (default 4; 0: never) */
     double takeover_min_s;    /* (default 2) */
+    double verify;            /* fraction of tiles rendered again on a second worker and compared bit for bit,
+                                 besides each worker's first result once another worker can check it (default
+                                 0.02; 0: no checks) */
 } pf_farm_opts_t;
 
 void pf_farm_opts_default(pf_farm_opts_t *o);
@@ -63,6 +67,10 @@ typedef struct pf_farm_summary {
     /* Hostile peers: what was refused, dropped, evicted. */
     uint64_t strikes, evicted, evicted_frames, hellos_dropped, blocked, blob_ignored, results_refused;
     uint64_t expired, stalls, takeovers, slots_reused;
+    /* Verification (--verify): tiles checked on a second worker, mismatches, tiles rendered in the coordinator
+     * to decide, liars evicted (their names) and their tiles rendered again. */
+    uint64_t verified, mismatches, verify_local, liars, rerendered;
+    char liar_names[256];
     pf_farm_worker_stat_t per_worker[64];
     int nper_worker;
     size_t bad_pixels;

@@ -65,6 +65,7 @@ typedef struct pf_fm {
     double t0;          /* when the job began */
     int ts;             /* tile side in pixels */
     char endpoint[256]; /* where the socket listens, for the local workers */
+    char ipcdir[160];   /* the private directory of the ipc:// socket (local workers only), "" */
     pf_zap_t *zap;
     pid_t pids[PF_FM_MAX_LOCAL];
     int npids;
@@ -72,6 +73,13 @@ typedef struct pf_fm {
     int ph_started; /* the photon thread runs and has not been joined */
     pf_progress_t bar;
     double render_start, last_log, no_worker_since;
+    /* Verification (verify.c): per tile, its check's state and the uid whose
+     * result is in the image (0: rendered here); a tile rendered here. */
+    uint8_t *vstate;
+    uint32_t *kept;
+    double *vsince; /* when a check was asked */
+    float *lpix;
+    int frame_readied;
 } pf_fm_t;
 
 /* farm_peers.c */
@@ -97,7 +105,24 @@ void pf_fm_strike(pf_fm_t *f, int wi, const char *why);
 void pf_fm_lease_all(pf_fm_t *f);
 /* Hands libzmq what worker wi's blob transfer window lets through. */
 void pf_fm_pump(pf_fm_t *f, int wi);
+/* Evicts worker wi (why: a phrase): BYE, its tiles re-queued, its slot
+ * freed, its identity, name and key blocked for the rest of the job. */
+void pf_fm_evict(pf_fm_t *f, int wi, const char *why);
 /* One frame from routing identity id (key: its CURVE key, or NULL). */
 void pf_fm_on_frame(pf_fm_t *f, const uint8_t *id, size_t idlen, const char *key, const uint8_t *data, size_t len);
+
+/* verify.c */
+
+/* The per-tile tables (with the tile table). 0 or PF_ENOMEM. */
+int pf_fm_verify_init(pf_fm_t *f);
+void pf_fm_verify_free(pf_fm_t *f);
+/* A RESULT (its pixels in f->pix) for a tile being checked: compared with
+ * the kept one, and a mismatch decided. 1 when it was such a RESULT, 0 when
+ * the caller stores it as the tile's result. */
+int pf_fm_verify_result(pf_fm_t *f, int wi, const pf_msg_result_t *r);
+/* Worker wi's result for tile ti was stored: maybe picked for a check. */
+void pf_fm_verify_kept(pf_fm_t *f, int wi, int ti);
+/* Checks no other worker can take are made here. */
+void pf_fm_verify_tick(pf_fm_t *f);
 
 #endif

@@ -99,10 +99,10 @@ void pf_fm_send_job(pf_fm_t *f, int wi)
 
 /* Evicts worker wi: BYE, its tiles back to the queue, its slot freed, and
  * its routing identity, name and key blocked for the rest of the job. */
-static void s_evict(pf_fm_t *f, int wi, const char *why)
+void pf_fm_evict(pf_fm_t *f, int wi, const char *why)
 {
     pf_worker_t *w = &f->reg.w[wi];
-    pf_warn("evicted worker %s (id %u) after %d strikes; the last: %s", w->name, w->uid, w->strikes, why);
+    pf_warn("evicted worker %s (id %u): %s", w->name, w->uid, why);
     pf_msg_t b = { .type = PF_MSG_BYE };
     snprintf(b.u.bye.reason, sizeof b.u.bye.reason, "evicted: %.240s", why);
     pf_fm_send(f, wi, &b);
@@ -122,15 +122,19 @@ void pf_fm_strike(pf_fm_t *f, int wi, const char *why)
     f->sum->strikes++;
     if (pf_fm_may_log(&f->strike_log, 10.0))
         pf_warn("worker %s (id %u): strike %d of %d: %s", w->name, w->uid, w->strikes, f->o->max_strikes, why);
-    if (f->o->max_strikes > 0 && w->strikes >= f->o->max_strikes)
-        s_evict(f, wi, why);
+    if (f->o->max_strikes > 0 && w->strikes >= f->o->max_strikes) {
+        char ev[400];
+        snprintf(ev, sizeof ev, "after %d strikes; the last: %.300s", w->strikes, why);
+        pf_fm_evict(f, wi, ev);
+    }
 }
 
 void pf_fm_bad(pf_fm_t *f, const char *peer, const char *why)
 {
     f->sum->malformed++;
+    char pwhy[512];
     if (pf_fm_may_log(&f->bad_log, 1.0))
-        pf_warn("dropped a malformed message from %s: %s", peer, why);
+        pf_warn("dropped a malformed message from %s: %s", peer, pf_log_printable(pwhy, sizeof pwhy, why));
 }
 
 /* --- leasing ------------------------------------------------------------- */
@@ -239,7 +243,9 @@ static void s_on_hello(pf_fm_t *f, const uint8_t *id, size_t idlen, const char *
         return;
     }
     char name[64], why[256] = "";
-    snprintf(name, sizeof name, "%.63s", h->name);
+    /* The name is the peer's: kept escaped (base/log.h), so no log line or
+     * summary prints a newline or a terminal escape it sent. */
+    pf_log_printable(name, sizeof name, h->name);
     if (!pf_registry_hello_admit(&f->reg, now)) {
         if (pf_fm_may_log(&f->hello_log, 1.0))
             pf_warn("dropped a HELLO from %s: more than %.0f a second", name, f->o->hello_rate);
@@ -254,8 +260,9 @@ static void s_on_hello(pf_fm_t *f, const uint8_t *id, size_t idlen, const char *
     }
     pf_fingerprint_t self = pf_frame_fingerprint();
     if (pf_fingerprint_check(&h->fp, &self, why, sizeof why) != PF_OK) {
+        char pwhy[512];
         s_refuse(f, id, idlen, why);
-        pf_warn("refused worker %s: %s", name, why);
+        pf_warn("refused worker %s: %s", name, pf_log_printable(pwhy, sizeof pwhy, why));
         f->sum->refused++;
         return;
     }
@@ -276,8 +283,11 @@ static void s_on_hello(pf_fm_t *f, const uint8_t *id, size_t idlen, const char *
     w->threads = h->threads;
     w->last_seen = now;
     w->state = PF_W_HELLO;
-    if (strcmp(h->fp.git, self.git) != 0)
-        pf_info("worker %s was built from %s (this coordinator: %s)", w->name, h->fp.git, self.git);
+    if (strcmp(h->fp.git, self.git) != 0) {
+        char git[128];
+        pf_info("worker %s was built from %s (this coordinator: %s)", w->name,
+                pf_log_printable(git, sizeof git, h->fp.git), self.git);
+    }
     f->sum->workers_seen++;
     pf_msg_t m = { .type = PF_MSG_WELCOME };
     m.u.welcome = (pf_msg_welcome_t){ w->uid, (uint32_t)f->o->heartbeat_ms };
@@ -356,12 +366,15 @@ static void s_on_result(pf_fm_t *f, int wi, const pf_msg_result_t *r)
     if (v == PF_RESULT_DUPLICATE)
         return;
     pf_msg_result_pixels(r, f->pix);
+    if (pf_fm_verify_result(f, wi, r))
+        return;
     for (uint32_t y = 0; y < r->h; y++)
         memcpy(&f->img->rgb[3 * ((size_t)(r->y0 + y) * (size_t)f->img->width + r->x0)], &f->pix[3 * (size_t)y * r->w],
                (size_t)r->w * 3 * sizeof(float));
     pf_leases_complete(&f->L, &f->reg, wi, r, now);
     f->sum->results++;
     w->tiles++;
+    pf_fm_verify_kept(f, wi, (int)r->tile);
 }
 
 /* A message from a registered worker, past the checks of s_on_frame. */
@@ -375,8 +388,10 @@ static void s_dispatch(pf_fm_t *f, int wi, const pf_msg_t *m)
     case PF_MSG_READY: s_on_ready(f, wi, &m->u.ready); break;
     case PF_MSG_RESULT: s_on_result(f, wi, &m->u.result); break;
     case PF_MSG_BYE:
-        if (pf_fm_may_log(&f->peer_log, 10.0))
-            pf_info("worker %s left: %s", w->name, m->u.bye.reason);
+        if (pf_fm_may_log(&f->peer_log, 10.0)) {
+            char reason[1024];
+            pf_info("worker %s left: %s", w->name, pf_log_printable(reason, sizeof reason, m->u.bye.reason));
+        }
         pf_fm_release_worker(f, wi, NULL);
         pf_registry_gone(&f->reg, wi, PF_W_FREE, pf_now());
         break;

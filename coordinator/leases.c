@@ -100,10 +100,10 @@ int pf_leases_pick(const pf_leases_t *L, const pf_registry_t *r, int wi)
 {
     uint32_t uid = r->w[wi].uid;
     for (int k = 0; k < L->qlen; k++)
-        if (!pf_leases_was_lessee(&L->t[s_at(L, k)], uid))
+        if (L->t[s_at(L, k)].not_uid != uid && !pf_leases_was_lessee(&L->t[s_at(L, k)], uid))
             return k;
     for (int k = 0; k < L->qlen; k++)
-        if (!s_other_taker(r, &L->t[s_at(L, k)], wi))
+        if (L->t[s_at(L, k)].not_uid != uid && !s_other_taker(r, &L->t[s_at(L, k)], wi))
             return k;
     return -1;
 }
@@ -181,7 +181,7 @@ int pf_leases_check(pf_leases_t *L, const pf_registry_t *r, int wi, const pf_msg
     uint32_t uid = r->w[wi].uid;
     for (int k = 0; k < t->nlessees; k++)
         if (t->lessees[k].uid == uid && t->lessees[k].attempt == res->attempt) {
-            if (t->state != PF_T_DONE)
+            if (t->state != PF_T_DONE && uid != t->not_uid)
                 return PF_RESULT_NEW;
             L->duplicates++;
             return PF_RESULT_DUPLICATE;
@@ -195,9 +195,8 @@ int pf_leases_check(pf_leases_t *L, const pf_registry_t *r, int wi, const pf_msg
     return PF_RESULT_REFUSED;
 }
 
-void pf_leases_complete(pf_leases_t *L, pf_registry_t *r, int wi, const pf_msg_result_t *res, double now)
+void pf_leases_finish(pf_leases_t *L, pf_registry_t *r, int ti)
 {
-    int ti = (int)res->tile;
     pf_tile_t *t = &L->t[ti];
     if (t->state == PF_T_DONE)
         return;
@@ -212,6 +211,27 @@ void pf_leases_complete(pf_leases_t *L, pf_registry_t *r, int wi, const pf_msg_r
     }
     t->state = PF_T_DONE;
     L->ndone++;
+}
+
+int pf_leases_reopen(pf_leases_t *L, int ti, uint32_t not_uid)
+{
+    pf_tile_t *t = &L->t[ti];
+    if (t->state != PF_T_DONE)
+        return -1;
+    t->state = PF_T_QUEUED;
+    t->attempt++;
+    t->not_uid = not_uid;
+    L->ndone--;
+    s_push_front(L, ti);
+    return 0;
+}
+
+void pf_leases_complete(pf_leases_t *L, pf_registry_t *r, int wi, const pf_msg_result_t *res, double now)
+{
+    const pf_tile_t *t = &L->t[res->tile];
+    if (t->state == PF_T_DONE)
+        return;
+    pf_leases_finish(L, r, (int)res->tile);
     uint32_t uid = r->w[wi].uid;
     for (int k = 0; k < t->nlessees; k++)
         if (t->lessees[k].uid == uid && t->lessees[k].attempt == res->attempt) {

@@ -40,6 +40,8 @@ typedef struct pf_tile {
     pf_lessee_t lessees[PF_LEASES_LESSEES]; /* oldest first */
     int nlessees;
     uint32_t x0, y0, w, h;
+    uint32_t not_uid;   /* a worker that may not lease it again (verification: the one whose result was
+                           kept, or a liar), 0: none; its RESULTs for the tile are duplicates */
 } pf_tile_t;
 
 typedef struct pf_leases {
@@ -86,6 +88,15 @@ int pf_leases_check(pf_leases_t *L, const pf_registry_t *r, int wi, const pf_msg
                     size_t why_len);
 /* Marks the RESULT's tile done (the pixels are in the image). */
 void pf_leases_complete(pf_leases_t *L, pf_registry_t *r, int wi, const pf_msg_result_t *res, double now);
+
+/* Marks tile ti done without a RESULT (it was rendered in the
+ * coordinator): its lease, if any, is dropped, or it leaves the queue. */
+void pf_leases_finish(pf_leases_t *L, pf_registry_t *r, int ti);
+
+/* Reopens done tile ti (verification, or a liar's tile to render again):
+ * it goes to the front of the queue with the next attempt, and worker
+ * not_uid (0: none) may not lease it. 0, or -1 when ti is not done. */
+int pf_leases_reopen(pf_leases_t *L, int ti, uint32_t not_uid);
 
 /* The tile of the oldest lease, granted more than min_age ago, or -1. */
 int pf_leases_oldest(const pf_leases_t *L, double now, double min_age);

@@ -10,6 +10,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "base/keyfile.h"
 #include "base/log.h"
@@ -81,11 +82,18 @@ static void s_usage(FILE *f)
             "      --lease-timeout S    a tile not returned S seconds after its lease goes to another worker (120)\n"
             "      --max-strikes N      evict a worker after N offences: malformed, out-of-turn or refused\n"
             "                           messages, expired leases, stalls (8; 0: never)\n"
+            "      --verify FRACTION    render this fraction of the tiles again on a second worker and compare\n"
+            "                           bit for bit, besides each worker's first tile; a worker caught\n"
+            "                           returning wrong pixels is evicted and its tiles rendered again\n"
+            "                           (0.02; 0: no checks)\n"
             "      --max-wait S         give up when no worker is connected for S seconds (0: never)\n"
             "      --worker-exe PATH    the worker program for --workers (default: beside photonfarm)\n"
             "\n"
             "  -q, --quiet              only errors\n"
-            "  -v, --verbose            debug logging\n",
+            "  -v, --verbose            debug logging\n"
+            "\n"
+            "exit codes: 0 done, 1 render failure, 2 usage error, 3 unreadable or malformed input,\n"
+            "4 image sizes do not fit (compare), 130 interrupted (SIGINT), 143 stopped (SIGTERM)\n",
             PF_VERSION, PF_GIT_HASH);
 }
 
@@ -198,14 +206,36 @@ enum {
     OPT_HDR = 256, OPT_SIZE, OPT_SPP, OPT_PHOTONS, OPT_CPHOTONS, OPT_GATHER, OPT_GFILTER, OPT_LSAMPLES, OPT_GK, OPT_CK, OPT_CR,
     OPT_DEPTH, OPT_THREADS, OPT_SEED, OPT_EXPOSURE, OPT_TERMS, OPT_WORKERS, OPT_BIND, OPT_MINW, OPT_CSECRET,
     OPT_CALLOW, OPT_TILE, OPT_HB, OPT_WATCHDOG, OPT_MAXWAIT, OPT_WEXE, OPT_TLIMIT, OPT_QUALITY, OPT_STRICT,
-    OPT_LEASE, OPT_STRIKES,
+    OPT_LEASE, OPT_STRIKES, OPT_VERIFY,
 };
 
-static volatile int s_interrupted;
+/* SIGINT and SIGTERM. The farm's event loop polls s_interrupted (the signal's
+ * number) and stops; the command then exits 128 + that number, as a shell
+ * reports a process a signal killed (130, 143). The in-process render has no
+ * way to stop midway: there the handler says so on stderr and exits at once
+ * with that code (the image files are written to a temporary name and
+ * renamed, so a half-written output never takes the real name). */
+static volatile int s_interrupted; /* int: pf_farm_render's stop flag (written whole by the handler) */
 static void s_on_signal(int sig)
 {
-    (void)sig;
-    s_interrupted = 1;
+    s_interrupted = sig;
+}
+
+static void s_on_signal_exit(int sig)
+{
+    static const char msg[] = "photonfarm: interrupted\n";
+    ssize_t w = write(2, msg, sizeof msg - 1);
+    (void)w;
+    _exit(128 + sig);
+}
+
+static void s_catch_signals(void (*handler)(int))
+{
+    struct sigaction sa;
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = handler;
+    sigaction(SIGINT, &sa, NULL);
+    sigaction(SIGTERM, &sa, NULL);
 }
 
 static const struct option s_render_opts[] = {
@@ -227,6 +257,7 @@ static const struct option s_render_opts[] = {
     { "worker-exe", required_argument, 0, OPT_WEXE }, { "time-limit", required_argument, 0, OPT_TLIMIT },
     { "quality", required_argument, 0, OPT_QUALITY }, { "strict", no_argument, 0, OPT_STRICT },
     { "lease-timeout", required_argument, 0, OPT_LEASE }, { "max-strikes", required_argument, 0, OPT_STRIKES },
+    { "verify", required_argument, 0, OPT_VERIFY },
     { 0, 0, 0, 0 },
 };
 
@@ -318,6 +349,7 @@ static int s_parse_render_args(int argc, char **argv, s_render_args *a)
         case OPT_MAXWAIT: bad = s_parse_float(optarg, &fval) || fval < 0; farm->max_wait_s = fval; break;
         case OPT_LEASE: bad = s_parse_float(optarg, &fval) || fval <= 0 || fval > 1e6; farm->lease_timeout_s = fval; break;
         case OPT_STRIKES: bad = s_parse_int(optarg, 0, 1000000, &farm->max_strikes); break;
+        case OPT_VERIFY: bad = s_parse_float(optarg, &fval) || fval < 0 || fval > 1; farm->verify = fval; break;
         case OPT_WEXE: farm->worker_exe = optarg; break;
         case OPT_TLIMIT: bad = s_parse_float(optarg, &a->time_limit) || a->time_limit <= 0 || a->time_limit > 1e7; break;
         case OPT_QUALITY: bad = (a->quality = s_find_quality(optarg)) == NULL; break;
@@ -435,18 +467,14 @@ static int s_render_farm(pf_scene_t **scene_p, s_render_args *a, pf_budget_t *bu
     farm->show_progress = 1;
     farm->budget = a->time_limit > 0 ? budget : NULL;
     s->threads = 0;
-    struct sigaction sa;
-    memset(&sa, 0, sizeof sa);
-    sa.sa_handler = s_on_signal;
-    sigaction(SIGINT, &sa, NULL);
-    sigaction(SIGTERM, &sa, NULL);
+    s_catch_signals(s_on_signal);
     signal(SIGPIPE, SIG_IGN);
     pf_farm_summary_t fs;
     int rc = pf_farm_render(*scene_p, s, a->terms, farm, &s_interrupted, img, &fs, err);
     pf_scene_destroy(scene_p);
     if (rc != PF_OK) {
         pf_error("render failed: %s", err->msg);
-        return rc == PF_EINTERRUPTED ? 130 : EXIT_RENDER;
+        return rc == PF_EINTERRUPTED ? 128 + (s_interrupted ? (int)s_interrupted : SIGINT) : EXIT_RENDER;
     }
     pf_farm_summary_log(&fs);
     sum->bad_pixels = fs.bad_pixels;
@@ -462,6 +490,7 @@ static int s_render_farm(pf_scene_t **scene_p, s_render_args *a, pf_budget_t *bu
 static int s_render_here(pf_scene_t **scene_p, const s_render_args *a, pf_budget_t *budget, const pf_settings_t *s,
                          pf_image_t *img, pf_job_summary_t *sum, pf_error_t *err)
 {
+    s_catch_signals(s_on_signal_exit);
     int rc = pf_job_render(*scene_p, s, a->terms, 1, a->time_limit > 0 ? budget : NULL, img, sum, err);
     pf_scene_destroy(scene_p);
     if (rc != PF_OK) {

@@ -42,6 +42,7 @@ typedef struct pf_worker {
     uint64_t tiles;     /* results of its that counted */
     uint64_t blob_sent; /* bytes of scene and maps sent to it */
     int strikes;
+    int checked;        /* one of its results was picked for a check on another worker (verify.c) */
 } pf_worker_t;
 
 typedef struct pf_registry {

@@ -9,8 +9,10 @@
  *   greyscale "Pf" in either byte order. The file stores the bottom row
  *   first; memory holds the top row first, and the codec flips.
  *
- * Both writers are atomic: they write "PATH.tmp" and rename it over PATH, so a
- * reader never sees half an image (a crash leaves at most the .tmp file). The
+ * Both writers are atomic: they write "PATH.tmp", fsync it, rename it over
+ * PATH and fsync the directory, so a reader never sees half an image, and
+ * after a crash or a power cut PATH is the old file or the whole new one (a
+ * crash leaves at most the .tmp file). The
  * PFM reader trusts nothing in the file: the header is parsed strictly, the
  * size is limited before anything is allocated, and the pixel data must be
  * exactly as long as the header says. Every error names the file.
@@ -25,7 +27,9 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <fcntl.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 /* The largest image accepted anywhere: 2^28 pixels (3 GiB of floats). It is
  * far above any render this program makes, and low enough that a corrupt
@@ -106,8 +110,39 @@ static char *s_tmp_path(const char *path)
 /* Closes fp and renames tmp over path. On any failure tmp is removed, err is
  * filled and a negative status returned. fclose is checked because it is
  * where a buffered write first reports a full disk. */
+/* fsyncs the directory that holds path, so a rename into it survives a
+ * crash. 0, or an errno; EINVAL (a file system that cannot sync a
+ * directory) counts as done. */
+static int s_sync_dir(const char *path)
+{
+    const char *slash = strrchr(path, '/');
+    char dir[4096];
+    if (!slash)
+        snprintf(dir, sizeof dir, ".");
+    else if (slash == path)
+        snprintf(dir, sizeof dir, "/");
+    else if ((size_t)(slash - path) < sizeof dir)
+        snprintf(dir, sizeof dir, "%.*s", (int)(slash - path), path);
+    else
+        return ENAMETOOLONG;
+    int fd = open(dir, O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+    if (fd < 0)
+        return errno;
+    int e = fsync(fd) == 0 || errno == EINVAL ? 0 : errno;
+    close(fd);
+    return e;
+}
+
 static int s_commit(FILE *fp, const char *tmp, const char *path, pf_error_t *err)
 {
+    /* The data reaches the disk before the name does: fsync the file, rename
+     * it, fsync the directory. */
+    if (fflush(fp) != 0 || fsync(fileno(fp)) != 0) {
+        int e = errno;
+        fclose(fp);
+        remove(tmp);
+        return pf_error_set(err, PF_EIO, path, 0, "cannot write %s: %s", tmp, strerror(e));
+    }
     if (fclose(fp) != 0) {
         int e = errno;
         remove(tmp);
@@ -118,6 +153,9 @@ static int s_commit(FILE *fp, const char *tmp, const char *path, pf_error_t *err
         remove(tmp);
         return pf_error_set(err, PF_EIO, path, 0, "cannot rename %s into place: %s", tmp, strerror(e));
     }
+    int e = s_sync_dir(path);
+    if (e)
+        return pf_error_set(err, PF_EIO, path, 0, "cannot sync the directory of %s: %s", path, strerror(e));
     return PF_OK;
 }
 

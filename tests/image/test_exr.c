@@ -2,7 +2,9 @@
  * trips bit for bit, half round trips within half precision, the codec
  * chosen by extension, the shared pbrt-v4 references read, and malformed
  * input (not an EXR, truncated, a header announcing a huge image, a missing
- * file) refused with an error naming the file. Temporary files live in a
+ * file) refused with an error naming the file; and the durable writes of
+ * every writer (PFM, PNG, EXR: fsync, rename, fsync of the directory) to a
+ * path with no directory part. Temporary files live in a
  * mkdtemp directory that is removed at the end. Runs from the repository
  * root (the references are at ../shared/scenes/bitterli/). */
 #include <math.h>
@@ -172,6 +174,38 @@ static void test_malformed(void)
     free(good);
 }
 
+/* The writers sync the file and then its directory (image.c s_commit,
+ * exr.c): a path with no directory part (the directory is ".") is written
+ * whole, under its name, with no .tmp left behind, by each writer. */
+static void test_durable_write(void)
+{
+    pf_image_t img, back;
+    s_pattern(&img, 7, 4);
+    pf_error_t err;
+    char cwd[4096];
+    CHECK(getcwd(cwd, sizeof cwd) != NULL);
+    CHECK(chdir(s_dir) == 0);
+    CHECK(pf_image_write_pfm(&img, "rel.pfm", &err) == PF_OK);
+    CHECK(pf_image_write_png(&img, "rel.png", 0.0f, &err) == PF_OK);
+    CHECK(pf_image_write_exr(&img, "rel.exr", 0, &err) == PF_OK);
+    CHECK(access("rel.pfm.tmp", F_OK) != 0 && access("rel.png.tmp", F_OK) != 0 && access("rel.exr.tmp", F_OK) != 0);
+    CHECK(chdir(cwd) == 0);
+    size_t n = 0;
+    uint8_t *raw = s_slurp(s_path("rel.pfm"), &n);
+    CHECK(raw && n == strlen("PF\n7 4\n-1.0\n") + 7 * 4 * 12);
+    free(raw);
+    raw = s_slurp(s_path("rel.png"), &n);
+    CHECK(raw && n > 12 && memcmp(raw, "\x89PNG", 4) == 0 && memcmp(raw + n - 8, "IEND", 4) == 0);
+    free(raw);
+    const char *names[2] = { "rel.pfm", "rel.exr" };
+    for (int k = 0; k < 2; k++) {
+        CHECK(pf_image_read_hdr(&back, s_path(names[k]), &err) == PF_OK);
+        CHECK(back.width == 7 && back.height == 4 && back.rgb && memcmp(back.rgb, img.rgb, 7 * 4 * 3 * 4) == 0);
+        pf_image_free(&back);
+    }
+    pf_image_free(&img);
+}
+
 int main(void)
 {
     snprintf(s_dir, sizeof s_dir, "/tmp/pf_exr_XXXXXX");
@@ -179,6 +213,7 @@ int main(void)
     test_round_trips();
     test_references();
     test_malformed();
+    test_durable_write();
     char cmd[128];
     snprintf(cmd, sizeof cmd, "rm -rf '%s'", s_dir);
     if (system(cmd) != 0)

@@ -25,6 +25,14 @@
  *               first connection held, then BYE. A coordinator that knows a
  *               worker by an id it never reuses refuses it, whatever slot
  *               the second connection lands in.
+ *   liar [HOLD=60]    HELLO, READY with credit 2 (no blob fetched), then
+ *               answers every TILE at once with a RESULT of the right size
+ *               whose pixels are made up (a constant 0.25, nothing
+ *               rendered), heartbeating; until BYE, JOB_END or HOLD seconds.
+ *               Only a coordinator that checks results catches it.
+ *   evil-name         HELLO under a name with a newline and a terminal
+ *               escape sequence ("evil\nname\x1b[31mred"), waits for the
+ *               JOB, then BYE with a reason that has them too.
  *
  * While it waits for a JOB or a TILE it heartbeats, as a worker does.
  * Every wait is bounded. Exit 0 whatever the coordinator does (the tests
@@ -339,11 +347,72 @@ static int s_forge(s_peer *p, double wait)
     return 0;
 }
 
+static int s_liar(s_peer *p, double hold)
+{
+    uint64_t jobid;
+    pf_msg_job_t job;
+    if (s_open(p, 0) != 0 || s_register(p, "hostile-liar", 1, &jobid, &job) != 0)
+        return 3;
+    s_ready(p, jobid, 2);
+    size_t npx = (size_t)job.tile_size * job.tile_size * 3;
+    float *rgb = malloc((npx ? npx : 1) * sizeof *rgb);
+    if (!rgb)
+        return 1;
+    for (size_t i = 0; i < npx; i++)
+        rgb[i] = 0.25f;
+    double end = pf_now() + hold, next_hb = 0;
+    uint64_t tiles = 0;
+    const char *ended = "its time";
+    while (pf_now() < end) {
+        s_heartbeat_due(p, &next_hb, tiles);
+        pf_msg_t m;
+        if (s_recv(p, &m, 50) != 0)
+            continue;
+        if (m.type == PF_MSG_TILE && (size_t)m.u.tile.w * m.u.tile.h * 3 <= npx) {
+            pf_msg_t r;
+            memset(&r, 0, sizeof r);
+            r.type = PF_MSG_RESULT;
+            r.job = jobid;
+            r.u.result = (pf_msg_result_t){ .tile = m.u.tile.tile, .attempt = m.u.tile.attempt, .x0 = m.u.tile.x0,
+                                            .y0 = m.u.tile.y0, .w = m.u.tile.w, .h = m.u.tile.h, .rgb = rgb,
+                                            .render_us = 1000 };
+            if (s_send(p, &r) == 0)
+                tiles++;
+        }
+        if (m.type == PF_MSG_BYE || m.type == PF_MSG_JOB_END) {
+            ended = m.type == PF_MSG_BYE ? "BYE" : "JOB_END";
+            break;
+        }
+    }
+    free(rgb);
+    printf("pf_hostile liar: job %llu: %llu made-up RESULTs sent; ended by %s\n", (unsigned long long)jobid,
+           (unsigned long long)tiles, ended);
+    return 0;
+}
+
+static int s_evil_name(s_peer *p)
+{
+    uint64_t jobid;
+    pf_msg_job_t job;
+    if (s_open(p, 0) != 0 || s_register(p, "evil\nname\x1b[31mred", 1, &jobid, &job) != 0)
+        return 3;
+    pf_msg_t m;
+    memset(&m, 0, sizeof m);
+    m.type = PF_MSG_BYE;
+    m.job = jobid;
+    snprintf(m.u.bye.reason, sizeof m.u.bye.reason, "going\nnow\x1b[0m");
+    s_send(p, &m);
+    usleep(200000);
+    printf("pf_hostile evil-name: job %llu: HELLO and BYE with a newline and an escape sequence sent\n",
+           (unsigned long long)jobid);
+    return 0;
+}
+
 int main(int argc, char **argv)
 {
     if (argc < 3 || argc > 5) {
         fprintf(stderr, "usage: pf_hostile ENDPOINT blob-flood [N [HOLD_S]] | hoard [HOLD_S] | churn [N] | "
-                        "forge [WAIT_S]\n");
+                        "forge [WAIT_S] | liar [HOLD_S] | evil-name\n");
         return 2;
     }
     const char *mode = argv[2];
@@ -366,6 +435,10 @@ int main(int argc, char **argv)
         rc = s_churn(&p, a > 0 ? (long)a : 1100);
     else if (!strcmp(mode, "forge"))
         rc = s_forge(&p, a >= 0 ? a : 2.0);
+    else if (!strcmp(mode, "liar"))
+        rc = s_liar(&p, a > 0 ? a : 60.0);
+    else if (!strcmp(mode, "evil-name"))
+        rc = s_evil_name(&p);
     else {
         fprintf(stderr, "pf_hostile: unknown mode '%s'\n", mode);
         rc = 2;

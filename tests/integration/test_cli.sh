@@ -452,6 +452,35 @@ check "--quality draft gives a clean PFM" pfm_clean "$T/q.pfm"
 run render "$SCENES/cornell-box/scene.json" --quality bogus -o "$T/x.png"
 check "--quality bogus exits 2" rc_is 2
 
+# ---------------------------------------------------------------------------
+echo "# signals: SIGINT exits 130, SIGTERM 143, in process and with a farm"
+
+# sig_run SIGNAL DELAY ARGS...: photonfarm ARGS in the background (with the
+# signals' default dispositions, which a script's background job lacks),
+# SIGNAL after DELAY seconds; its exit code in $rc.
+sig_run() {
+    local sig=$1 delay=$2 pid
+    shift 2
+    LAST="photonfarm $* (SIG$sig after $delay s)"
+    env --default-signal=INT,TERM timeout 60 "$PF" "$@" >"$T/out" 2>"$T/err" &
+    pid=$!
+    sleep "$delay"
+    kill -"$sig" "$pid" 2>/dev/null
+    wait "$pid"
+    rc=$?
+}
+run render --help
+check "render --help names the exit codes 130 and 143" out_has "130 interrupted (SIGINT), 143 stopped (SIGTERM)"
+SLOW=(render "$SCENES/cornell-spheres/scene.json" --size 256x256 --spp 256 --threads 1 -o "$T/sig.png")
+sig_run TERM 1 "${SLOW[@]}" --workers 0
+check "SIGTERM during an in-process render exits 143" rc_is 143
+sig_run INT 1 "${SLOW[@]}" --workers 0
+check "SIGINT during an in-process render exits 130" rc_is 130
+check "... and writes no image" test ! -e "$T/sig.png"
+sig_run TERM 2 "${SLOW[@]}" --workers 1
+check "SIGTERM during a farm render exits 143" rc_is 143
+check "... and says it was interrupted" err_has "interrupted"
+
 if [ "$known" -gt 0 ]; then
     echo "($known known bugs reported above do not count as failures)"
 fi

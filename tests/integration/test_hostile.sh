@@ -27,6 +27,14 @@
 #  d. forged RESULT in a reused slot: a worker leases a tile and vanishes;
 #     a new connection lands in its slot and returns a RESULT for that
 #     lease; it is refused (logged as a strike), and the image is intact.
+#  e. a liar: a worker that speaks the protocol honestly but makes up the
+#     pixels of every tile (it renders nothing), beside one honest local
+#     worker (--workers 1, --min-workers 2). A result is checked on the other
+#     worker (--verify), the mismatch decided by a render in the
+#     coordinator; the liar is evicted, all its tiles are rendered again, the
+#     summary says so, and the image is bit-identical to in-process.
+#  f. a HELLO name and a BYE reason with a newline and a terminal escape
+#     sequence reach the coordinator's log escaped, never raw.
 #
 # Every wait is bounded and every process this script starts is killed on
 # exit. The heartbeat is 200 ms (a silent worker is dead after 0.8 s). The
@@ -373,10 +381,62 @@ td() {
     stop "$ww" "$forge"
 }
 
+# ---- e. a liar ------------------------------------------------------------------------------
+
+te() {
+    echo "# e. a worker that returns made-up pixels, beside an honest local worker"
+    local port coord liar
+    port=$(free_port)
+    coordinator liar_coord "$port" SMALL --workers 1 --threads 1 --min-workers 2 --verify 0.02
+    coord=$LASTPID
+    start liar "$HOS" "tcp://127.0.0.1:$port" liar 60
+    liar=$LASTPID
+    wait_exit "$coord" 120
+    if completed "e: the render completes" "$T/liar_coord.err"; then
+        check "e: the image is bit-identical to in-process" same "$T/liar_coord.pfm" "$T/ref_SMALL.pfm"
+        check "e: the mismatch is logged" has "$T/liar_coord.err" 'verify: tile [0-9]+: .* returned different pixels'
+        check "e: the liar is evicted" has "$T/liar_coord.err" 'evicted worker hostile-liar \(id [0-9]+\): returned wrong'
+        check "e: the summary says so" has "$T/liar_coord.err" \
+            'verify: [0-9]+ tiles? checked .*, [1-9][0-9]* mismatch(es)?, worker hostile-liar evicted, [0-9]+ tiles re-rendered'
+        check "e: the liar keeps no tile" hasnt "$T/liar_coord.err" 'summary: worker hostile-liar rendered [1-9]'
+        note "e: $(grep -oE 'verify: [0-9]+ tiles? checked.*' "$T/liar_coord.err" | tail -n 1)"
+    fi
+    wait_exit "$liar" 10
+    note "e: $(sed 's/^pf_hostile //' "$T/liar.out")"
+    stop "$liar"
+}
+
+# ---- f. a name and a reason with control characters ---------------------------------------
+
+tf() {
+    echo "# f. a HELLO name and a BYE reason with a newline and a terminal escape"
+    local port coord ww evil
+    port=$(free_port)
+    coordinator evil_coord "$port" SMALL
+    coord=$LASTPID
+    start evil "$HOS" "tcp://127.0.0.1:$port" evil-name
+    evil=$LASTPID
+    wait_exit "$evil" 60
+    check "f: pf_hostile evil-name got the job and said BYE (exit $rc)" eq "$rc" 0 || show "$T/evil.out"
+    worker evil_w "$port"
+    ww=$LASTPID
+    wait_exit "$coord" 90
+    if completed "f: the render completes" "$T/evil_coord.err"; then
+        check "f: the name is logged escaped" has "$T/evil_coord.err" \
+            'worker evil\\x0aname\\x1b\[31mred joined'
+        check "f: the reason is logged escaped" has "$T/evil_coord.err" 'left: going\\x0anow\\x1b\[0m'
+        check "f: no escape character reaches the log" hasnt "$T/evil_coord.err" $'\x1b'
+        check "f: no line of the log starts with the name's second half" hasnt "$T/evil_coord.err" '^name'
+        check "f: the image is bit-identical to in-process" same "$T/evil_coord.pfm" "$T/ref_SMALL.pfm"
+        note "f: $(grep -oE 'worker evil.*joined' "$T/evil_coord.err" | head -n 1)"
+    fi
+    stop "$ww" "$evil"
+}
+
 # ---- run --------------------------------------------------------------------------------
 
 if references; then
-    for n in ${PF_HOSTILE_ONLY:-a b c d}; do
+    for n in ${PF_HOSTILE_ONLY:-a b c d e f}; do
         "t$n"
     done
 fi
