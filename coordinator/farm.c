@@ -521,6 +521,7 @@ static int s_event_loop(pf_fm_t *f, volatile int *stop, pf_error_t *err)
             s_recv_burst(f);
         s_tick(f);
         pf_fm_verify_tick(f);
+        pf_fm_evict_pending(f);
         if (f->job_ready)
             pf_fm_lease_all(f);
         int alive = s_count_alive(f);

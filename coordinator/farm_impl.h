@@ -80,6 +80,11 @@ typedef struct pf_fm {
     double *vsince; /* when a check was asked */
     float *lpix;
     int frame_readied;
+    /* Liars verify.c found and farm_peers.c evicts (pf_fm_evict_pending):
+     * verify.c judges, farm_peers.c acts, so neither calls the other back. */
+    uint32_t evict_uid[16];
+    char evict_why[16][96];
+    int nevict;
 } pf_fm_t;
 
 /* farm_peers.c */
@@ -108,6 +113,8 @@ void pf_fm_pump(pf_fm_t *f, int wi);
 /* Evicts worker wi (why: a phrase): BYE, its tiles re-queued, its slot
  * freed, its identity, name and key blocked for the rest of the job. */
 void pf_fm_evict(pf_fm_t *f, int wi, const char *why);
+/* Evicts the live workers verify.c queued as liars (f->evict_uid). */
+void pf_fm_evict_pending(pf_fm_t *f);
 /* One frame from routing identity id (key: its CURVE key, or NULL). */
 void pf_fm_on_frame(pf_fm_t *f, const uint8_t *id, size_t idlen, const char *key, const uint8_t *data, size_t len);
 

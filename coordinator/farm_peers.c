@@ -112,6 +112,18 @@ void pf_fm_evict(pf_fm_t *f, int wi, const char *why)
     f->sum->evicted++;
 }
 
+void pf_fm_evict_pending(pf_fm_t *f)
+{
+    for (int k = 0; k < f->nevict; k++)
+        for (int i = 0; i < f->reg.nw; i++)
+            if (f->reg.w[i].uid == f->evict_uid[k] && f->reg.w[i].state != PF_W_FREE &&
+                f->reg.w[i].state != PF_W_DEAD) {
+                pf_fm_evict(f, i, f->evict_why[k]);
+                break;
+            }
+    f->nevict = 0;
+}
+
 /* Counts a strike against a live worker; evicts it past max_strikes. */
 void pf_fm_strike(pf_fm_t *f, int wi, const char *why)
 {
@@ -366,8 +378,10 @@ static void s_on_result(pf_fm_t *f, int wi, const pf_msg_result_t *r)
     if (v == PF_RESULT_DUPLICATE)
         return;
     pf_msg_result_pixels(r, f->pix);
-    if (pf_fm_verify_result(f, wi, r))
+    if (pf_fm_verify_result(f, wi, r)) {
+        pf_fm_evict_pending(f);
         return;
+    }
     for (uint32_t y = 0; y < r->h; y++)
         memcpy(&f->img->rgb[3 * ((size_t)(r->y0 + y) * (size_t)f->img->width + r->x0)], &f->pix[3 * (size_t)y * r->w],
                (size_t)r->w * 3 * sizeof(float));
@@ -375,6 +389,7 @@ static void s_on_result(pf_fm_t *f, int wi, const pf_msg_result_t *r)
     f->sum->results++;
     w->tiles++;
     pf_fm_verify_kept(f, wi, (int)r->tile);
+    pf_fm_evict_pending(f);
 }
 
 /* A message from a registered worker, past the checks of s_on_frame. */

@@ -132,8 +132,11 @@ static void s_liar(pf_fm_t *f, uint32_t uid, int ti)
             pf_registry_block(&f->reg, w);
             pf_registry_gone(&f->reg, wi, PF_W_FREE, pf_now());
             sum->evicted++;
-        } else {
-            pf_fm_evict(f, wi, why);
+        } else if (f->nevict < (int)(sizeof f->evict_uid / sizeof f->evict_uid[0])) {
+            /* Evicted by farm_peers.c once this check is done (pf_fm_evict_pending). */
+            f->evict_uid[f->nevict] = uid;
+            snprintf(f->evict_why[f->nevict], sizeof f->evict_why[0], "%s", why);
+            f->nevict++;
         }
     }
     pf_warn("verify: %d tile%s of the liar's rendered again elsewhere", n, n == 1 ? "" : "s");

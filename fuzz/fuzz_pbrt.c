@@ -1,4 +1,4 @@
-/* fuzz_pbrt.c: libFuzzer target for the pbrt-v4 reader (load/pbrt*.c
+/* fuzz_pbrt.c: libFuzzer target for the pbrt-v4 reader (load/pbrt/
  * through pf_scene_load_opts, so the finalize checks run too). The input is
  * the scene file scene.pbrt; beside it lie a PLY mesh (tri.ply, the name of
  * fuzz_models.h), a file to Include (inc.pbrt) and a spectrum file

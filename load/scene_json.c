@@ -6,7 +6,7 @@
  *
  * This file holds the scene's sections and the entry point; reading the file,
  * the line of every value (for "file:line: what" errors) and typed access to
- * values are in scene_json_read.c, shared through scene_json_impl.h.
+ * values are in scene_json_read.c, shared through json_ctx.h.
  *
  * Owns nothing beyond the call: the text, the tree and the line table are
  * freed before returning. Called from one thread at a time per scene. */
@@ -21,7 +21,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "load/scene_json_impl.h"
+#include "load/json_ctx.h"
 
 /* Entries in an obj object's "materials" map (MTL files with more distinct
  * materials than this are not plausible). */

@@ -13,7 +13,7 @@
  *
  * Owns nothing beyond a call (the text and the line table go to the caller,
  * who frees them). Called from one thread at a time per scene. */
-#include "load/scene_json_impl.h"
+#include "load/json_ctx.h"
 
 #include <errno.h>
 #include <float.h>

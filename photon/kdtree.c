@@ -28,7 +28,7 @@
  * fixed place, so even bad input cannot make the comparison inconsistent.
  *
  * Distances. A squared distance is computed as the float differences squared
- * and summed in double, then rounded once to float (s_dist2, kdtree_impl.h).
+ * and summed in double, then rounded once to float (s_dist2, kd_layout.h).
  * The products are exact in double, so the value does not depend on whether
  * the compiler contracts multiply-adds into FMA, and tests can reproduce it
  * bit for bit. The rounding is monotone, so the squared distance to a split
@@ -49,7 +49,7 @@
 #include <string.h>
 
 #include "base/status.h"
-#include "photon/kdtree_impl.h"
+#include "photon/kd_layout.h"
 
 /* Ranges at least this large are split by a separate OpenMP task; below it a
  * task costs more than it saves. The result does not depend on it. */

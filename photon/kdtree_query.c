@@ -10,7 +10,7 @@
 #include <stdlib.h>
 
 #include "base/status.h"
-#include "photon/kdtree_impl.h"
+#include "photon/kd_layout.h"
 
 /* A radius search scans a subtree of at most this many photons in index
  * order instead of walking it: no plane tests or stack, and the photons are

@@ -1,4 +1,4 @@
-/* test_pbrt.c: self-test of the pbrt-v4 reader (load/pbrt*.c). Small pbrt
+/* test_pbrt.c: self-test of the pbrt-v4 reader (load/pbrt/). Small pbrt
  * texts written to a temporary folder: every transform directive against
  * hand-computed points, the emitting side of meshes, spheres, disks and
  * bilinear patches under ReverseOrientation and mirroring transforms,

@@ -27,7 +27,7 @@
 #include <string.h>
 
 #include "base/reserve.h"
-#include "load/pbrt_impl.h"
+#include "load/pbrt/pbrt_impl.h"
 
 #define S_PHI_STEPS 64
 #define S_THETA_STEPS 32

@@ -24,7 +24,7 @@
 #include <unistd.h>
 
 #include "base/reserve.h"
-#include "load/pbrt_impl.h"
+#include "load/pbrt/pbrt_impl.h"
 
 /* The largest file read: text scenes beyond this are not plausible. */
 #define S_MAX_FILE ((size_t)1 << 32)

@@ -24,7 +24,7 @@
 #include <string.h>
 
 #include "base/reserve.h"
-#include "load/pbrt_impl.h"
+#include "load/pbrt/pbrt_impl.h"
 
 /* ---- reading directive arguments ---- */
 

@@ -1,4 +1,4 @@
-/* scene_json_impl.h: private to load/. What the JSON scene loader's two
+/* json_ctx.h: private to load/. What the JSON scene loader's two
  * files share:
  *
  *   scene_json_read.c  the file's text, the node-to-line table, error

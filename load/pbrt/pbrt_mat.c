@@ -41,7 +41,7 @@
 #include <string.h>
 
 #include "base/reserve.h"
-#include "load/pbrt_impl.h"
+#include "load/pbrt/pbrt_impl.h"
 
 int pf_pbrt_texture(pf_pbrt_t *c, const char *name, const char *type, const char *cls, pf_pbrt_params_t *ps,
                     pf_pbrt_loc_t loc)
@@ -71,16 +71,6 @@ int pf_pbrt_texture(pf_pbrt_t *c, const char *name, const char *type, const char
     memset(ps, 0, sizeof *ps);
     t->loc = loc;
     *slot = (int32_t)c->ntexs++;
-    return PF_OK;
-}
-
-int pf_pbrt_find_texture(pf_pbrt_t *c, const char *name, int is_float, pf_pbrt_loc_t loc, pf_pbrt_tex_t **out)
-{
-    int id = pf_pbrt_name_find(c, name);
-    int32_t t = id < 0 ? -1 : is_float ? c->named_ftex[id] : c->named_stex[id];
-    if (t < 0)
-        return pf_pbrt_error(c, PF_EPARSE, loc, "no %s texture named \"%s\"", is_float ? "float" : "spectrum", name);
-    *out = &c->texs[t];
     return PF_OK;
 }
 

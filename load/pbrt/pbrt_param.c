@@ -28,7 +28,7 @@
 #include <string.h>
 
 #include "base/reserve.h"
-#include "load/pbrt_impl.h"
+#include "load/pbrt/pbrt_impl.h"
 
 static const struct {
     const char *name;

@@ -1,4 +1,4 @@
-/* kdtree_impl.h: private to photon/. What the kd-tree's two files share:
+/* kd_layout.h: private to photon/. What the kd-tree's two files share:
  *
  *   kdtree.c        the build, the layout check, the tree's lifetime, and
  *                   the nearest-normal search with its grid;

@@ -11,7 +11,7 @@
 
 #include "base/log.h"
 #include "base/reserve.h"
-#include "load/pbrt_impl.h"
+#include "load/pbrt/pbrt_impl.h"
 
 /* ---- names and warnings ---- */
 
@@ -221,3 +221,14 @@ double pf_pbrt_m4_det3(const pf_pbrt_m4 m)
            m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
 }
 
+/* A named texture of the kind asked for (float or spectrum), declared
+ * earlier by a Texture directive. */
+int pf_pbrt_find_texture(pf_pbrt_t *c, const char *name, int is_float, pf_pbrt_loc_t loc, pf_pbrt_tex_t **out)
+{
+    int id = pf_pbrt_name_find(c, name);
+    int32_t t = id < 0 ? -1 : is_float ? c->named_ftex[id] : c->named_stex[id];
+    if (t < 0)
+        return pf_pbrt_error(c, PF_EPARSE, loc, "no %s texture named \"%s\"", is_float ? "float" : "spectrum", name);
+    *out = &c->texs[t];
+    return PF_OK;
+}
