@@ -304,7 +304,7 @@ void pf_rd_settings(pf_rd_t *r, pf_settings_t *s)
 
 /* Range checks write "field value is out of range lo..hi" into why and return
  * nonzero when the value is outside. */
-static int s_out(char *why, size_t why_len, const char *field, int64_t v, int64_t lo, int64_t hi)
+static int s_out_of_range(char *why, size_t why_len, const char *field, int64_t v, int64_t lo, int64_t hi)
 {
     if (v >= lo && v <= hi)
         return 0;
@@ -322,20 +322,20 @@ static int s_bad_radius(char *why, size_t why_len, const char *field, float v)
 
 int pf_settings_check(const pf_settings_t *s, char *why, size_t why_len)
 {
-    if (s_out(why, why_len, "settings.width", s->width, 1, S_MAX_IMAGE_SIDE) ||
-        s_out(why, why_len, "settings.height", s->height, 1, S_MAX_IMAGE_SIDE) ||
-        s_out(why, why_len, "settings.spp", s->spp, 1, INT32_MAX) ||
-        s_out(why, why_len, "settings.gather", s->gather, 0, INT32_MAX) ||
-        s_out(why, why_len, "settings.gather_filter", s->gather_filter, 0, PF_MAX_GATHER_FILTER) ||
-        s_out(why, why_len, "settings.light_samples", s->light_samples, 1, INT32_MAX) ||
-        s_out(why, why_len, "settings.max_depth", s->max_depth, 0, S_MAX_DEPTH) ||
-        s_out(why, why_len, "settings.photon_max_depth", s->photon_max_depth, 0, S_MAX_DEPTH) ||
-        s_out(why, why_len, "settings.global_k", s->global_k, 1, S_MAX_K) ||
-        s_out(why, why_len, "settings.caustic_k", s->caustic_k, 1, S_MAX_K) ||
+    if (s_out_of_range(why, why_len, "settings.width", s->width, 1, S_MAX_IMAGE_SIDE) ||
+        s_out_of_range(why, why_len, "settings.height", s->height, 1, S_MAX_IMAGE_SIDE) ||
+        s_out_of_range(why, why_len, "settings.spp", s->spp, 1, INT32_MAX) ||
+        s_out_of_range(why, why_len, "settings.gather", s->gather, 0, INT32_MAX) ||
+        s_out_of_range(why, why_len, "settings.gather_filter", s->gather_filter, 0, PF_MAX_GATHER_FILTER) ||
+        s_out_of_range(why, why_len, "settings.light_samples", s->light_samples, 1, INT32_MAX) ||
+        s_out_of_range(why, why_len, "settings.max_depth", s->max_depth, 0, S_MAX_DEPTH) ||
+        s_out_of_range(why, why_len, "settings.photon_max_depth", s->photon_max_depth, 0, S_MAX_DEPTH) ||
+        s_out_of_range(why, why_len, "settings.global_k", s->global_k, 1, S_MAX_K) ||
+        s_out_of_range(why, why_len, "settings.caustic_k", s->caustic_k, 1, S_MAX_K) ||
         s_bad_radius(why, why_len, "settings.caustic_radius", s->caustic_radius) ||
         s_bad_radius(why, why_len, "settings.global_radius", s->global_radius) ||
-        s_out(why, why_len, "settings.irradiance_stride", s->irradiance_stride, 1, INT32_MAX) ||
-        s_out(why, why_len, "settings.threads", s->threads, 0, INT32_MAX))
+        s_out_of_range(why, why_len, "settings.irradiance_stride", s->irradiance_stride, 1, INT32_MAX) ||
+        s_out_of_range(why, why_len, "settings.threads", s->threads, 0, INT32_MAX))
         return PF_EINVAL;
     if (!isfinite(s->exposure)) {
         s_whyf(why, why_len, "settings.exposure %g is not finite", (double)s->exposure);
@@ -350,8 +350,8 @@ int pf_settings_check(const pf_settings_t *s, char *why, size_t why_len)
  * edges representable. */
 static int s_bad_rect(char *why, size_t why_len, uint32_t x0, uint32_t y0, uint32_t w, uint32_t h)
 {
-    if (s_out(why, why_len, "w", w, 1, PF_PROTO_MAX_TILE_PIXELS) ||
-        s_out(why, why_len, "h", h, 1, PF_PROTO_MAX_TILE_PIXELS))
+    if (s_out_of_range(why, why_len, "w", w, 1, PF_PROTO_MAX_TILE_PIXELS) ||
+        s_out_of_range(why, why_len, "h", h, 1, PF_PROTO_MAX_TILE_PIXELS))
         return 1;
     if ((uint64_t)w * h > PF_PROTO_MAX_TILE_PIXELS) {
         s_whyf(why, why_len, "a %" PRIu32 "x%" PRIu32 " tile is over the limit of %u pixels", w, h,
@@ -383,19 +383,19 @@ static int s_check(const pf_msg_t *m, char *why, size_t why_len)
     case PF_MSG_HELLO:
         return s_bad_str(why, why_len, "fingerprint.git", m->u.hello.fp.git, sizeof m->u.hello.fp.git) ||
                s_bad_str(why, why_len, "name", m->u.hello.name, sizeof m->u.hello.name) ||
-               s_out(why, why_len, "threads", m->u.hello.threads, 1, S_MAX_THREADS);
+               s_out_of_range(why, why_len, "threads", m->u.hello.threads, 1, S_MAX_THREADS);
     case PF_MSG_WELCOME:
-        return s_out(why, why_len, "heartbeat_ms", m->u.welcome.heartbeat_ms, 1, S_MAX_HEARTBEAT_MS);
+        return s_out_of_range(why, why_len, "heartbeat_ms", m->u.welcome.heartbeat_ms, 1, S_MAX_HEARTBEAT_MS);
     case PF_MSG_REFUSE:
         return s_bad_str(why, why_len, "reason", m->u.refuse.reason, sizeof m->u.refuse.reason);
     case PF_MSG_HEARTBEAT:
         return 0;
     case PF_MSG_JOB:
         return pf_settings_check(&m->u.job.settings, why, why_len) != PF_OK ||
-               s_out(why, why_len, "terms", m->u.job.terms, 1, S_MAX_TERMS) ||
-               s_out(why, why_len, "tile_size", m->u.job.tile_size, 1, S_MAX_TILE_SIZE);
+               s_out_of_range(why, why_len, "terms", m->u.job.terms, 1, S_MAX_TERMS) ||
+               s_out_of_range(why, why_len, "tile_size", m->u.job.tile_size, 1, S_MAX_TILE_SIZE);
     case PF_MSG_BLOB_REQ:
-        if (s_out(why, why_len, "credit", m->u.blob_req.credit, 1, S_MAX_BLOB_CREDIT))
+        if (s_out_of_range(why, why_len, "credit", m->u.blob_req.credit, 1, S_MAX_BLOB_CREDIT))
             return 1;
         if (m->u.blob_req.offset % PF_PROTO_CHUNK_SIZE) {
             s_whyf(why, why_len, "offset %" PRIu64 " is not a multiple of the chunk size %u", m->u.blob_req.offset,
@@ -405,7 +405,7 @@ static int s_check(const pf_msg_t *m, char *why, size_t why_len)
         return 0;
     case PF_MSG_BLOB_CHUNK: {
         const pf_msg_blob_chunk_t *c = &m->u.chunk;
-        if (s_out(why, why_len, "len", c->len, 0, PF_PROTO_CHUNK_SIZE))
+        if (s_out_of_range(why, why_len, "len", c->len, 0, PF_PROTO_CHUNK_SIZE))
             return 1;
         if (c->offset > c->total || c->len > c->total - c->offset) {
             s_whyf(why, why_len, "offset %" PRIu64 " + len %" PRIu32 " runs past total %" PRIu64, c->offset, c->len,
@@ -415,7 +415,7 @@ static int s_check(const pf_msg_t *m, char *why, size_t why_len)
         return 0;
     }
     case PF_MSG_READY:
-        return s_out(why, why_len, "credit", m->u.ready.credit, 1, S_MAX_READY_CREDIT);
+        return s_out_of_range(why, why_len, "credit", m->u.ready.credit, 1, S_MAX_READY_CREDIT);
     case PF_MSG_TILE:
         return s_bad_rect(why, why_len, m->u.tile.x0, m->u.tile.y0, m->u.tile.w, m->u.tile.h);
     case PF_MSG_RESULT:
