@@ -1,4 +1,4 @@
-/* fuzz_mtl.c: libFuzzer target for the MTL reader (load/mtl.c). Every
+/* fuzz_mtl.c: libFuzzer target for the MTL reader (mesh/mtl.c). Every
  * material an accepted file adds must be one the renderer can use: finite
  * values, a known type, a positive index of refraction for glass, and a
  * NUL-terminated name (the scene blob and every message rely on that).

@@ -1,4 +1,4 @@
-/* fuzz_obj.c: libFuzzer target for the OBJ reader (load/obj.c), with the
+/* fuzz_obj.c: libFuzzer target for the OBJ reader (mesh/obj.c), with the
  * MTL reader behind its mtllib statements (an MTL file of each name the
  * seeds use sits beside the input, fuzz_models.h). Each input is loaded
  * twice: as a scene by itself (pf_scene_load: default material, finalize,

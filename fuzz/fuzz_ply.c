@@ -1,4 +1,4 @@
-/* fuzz_ply.c: libFuzzer target for the PLY reader (load/ply.c: ascii and
+/* fuzz_ply.c: libFuzzer target for the PLY reader (mesh/ply.c: ascii and
  * binary of both byte orders). Each input is loaded as a scene by itself
  * (pf_scene_load: material, point light, finalize and the scene-blob round
  * trip), and again with a mirroring transform, which reverses the winding

@@ -40,7 +40,8 @@ LAYERS = {
     "base": [],
     "image": ["base"],
     "scene": ["image", "base"],
-    "load": ["scene", "image", "base"],
+    "mesh": ["scene", "image", "base"],
+    "load": ["mesh", "scene", "image", "base"],
     "accel": ["scene", "image", "base"],
     "material": ["scene", "image", "base"],
     "light": ["scene", "image", "base"],
@@ -48,8 +49,8 @@ LAYERS = {
     "photon": ["accel", "material", "light", "scene", "image", "base"],
     "render": ["photon", "proto", "accel", "material", "light", "scene", "image", "base"],
     "worker": ["render", "photon", "proto", "accel", "material", "light", "scene", "image", "base"],
-    "coordinator": ["render", "load", "photon", "proto", "accel", "material", "light", "scene", "image",
-                    "base"],
+    "coordinator": ["render", "load", "mesh", "photon", "proto", "accel", "material", "light", "scene",
+                    "image", "base"],
 }
 # Tool folders: what they may not use.
 TOOLS = {"bench": ["coordinator", "worker"], "fuzz": ["coordinator", "worker"]}
@@ -58,7 +59,8 @@ TOOLS = {"bench": ["coordinator", "worker"], "fuzz": ["coordinator", "worker"]}
 EXTERNAL = {
     "base": {"m"},
     "image": {"PkgConfig::PNG", "tinyexr::tinyexr"},
-    "load": {"PkgConfig::CJSON", "PkgConfig::ZLIB"},
+    "mesh": {"PkgConfig::ZLIB"},
+    "load": {"PkgConfig::CJSON"},
     "accel": {"embree"},
     "photon": {"OpenMP::OpenMP_C"},
     "render": {"OpenMP::OpenMP_C"},

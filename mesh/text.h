@@ -1,4 +1,4 @@
-/* text.h: private to load/. The statement reading that the OBJ and MTL
+/* text.h: private to mesh/. The statement reading that the OBJ and MTL
  * readers share, as both formats define it: a statement is one line, a
  * keyword and its values separated by blanks, ended by the line's end or a
  * '#' comment. Here: the character classes, tokens and numbers (inline, as
@@ -6,7 +6,7 @@
  * as a name, the one warning per unsupported keyword, and the read loop with
  * its read-error report (text.c).
  *
- * Nothing outside load/ includes this header. No state of its own: the
+ * Nothing outside mesh/ includes this header. No state of its own: the
  * callers own their buffers and counters; single-threaded like the loaders. */
 #ifndef PF_LOAD_TEXT_H
 #define PF_LOAD_TEXT_H

@@ -36,7 +36,7 @@
  * with a warning; Tr means d = 1 - Tr. Colours may give one value (grey) or three; the `spectral` and
  * `xyz` forms are not supported. A material name longer than 63 bytes is
  * truncated with a warning (obj.c truncates `usemtl` names the same way). */
-#include "load/load.h"
+#include "mesh/mesh.h"
 
 #include <errno.h>
 #include <math.h>
@@ -47,7 +47,7 @@
 
 #include "base/log.h"
 #include "base/reserve.h"
-#include "load/text.h"
+#include "mesh/text.h"
 
 /* One material as written, before mapping. */
 typedef struct s_mtl {

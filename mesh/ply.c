@@ -26,7 +26,7 @@
  * the .gz file with the line or byte offset of the inflated text. */
 #include "base/fastfloat.h"
 #include "base/reserve.h"
-#include "load/load.h"
+#include "mesh/mesh.h"
 
 #include <errno.h>
 #include <inttypes.h>

@@ -36,7 +36,7 @@
  * winding and negates the transformed normals, so face and shading normals
  * keep pointing out of the same side of the surface. */
 #include "base/reserve.h"
-#include "load/load.h"
+#include "mesh/mesh.h"
 
 #include <errno.h>
 #include <math.h>
@@ -46,7 +46,7 @@
 #include <string.h>
 
 #include "base/log.h"
-#include "load/text.h"
+#include "mesh/text.h"
 
 /* A corner's normal reference: an index into the file's vn list, or, with
  * S_FACE_NRM set, into the mesh's list of face normals. */

@@ -2,7 +2,7 @@
  * not on the per-byte path: error and warning reports, the rest of a line
  * as a name, and the read loop. Called by obj.c and mtl.c on the one thread
  * that builds the scene; owns nothing beyond a call. */
-#include "load/text.h"
+#include "mesh/text.h"
 
 #include <errno.h>
 #include <string.h>
