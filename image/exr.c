@@ -9,6 +9,7 @@
  *
  * No shared state: any thread may call any function on distinct images. */
 #include "image/image.h"
+#include "image/sync.h"
 
 #include <errno.h>
 #include <fcntl.h>
@@ -163,28 +164,6 @@ int pf_image_read_exr(pf_image_t *img, const char *path, pf_error_t *err)
     return PF_OK;
 }
 
-/* fsyncs the directory that holds path (as image.c does after its renames).
- * 0, or an errno; EINVAL (cannot sync a directory there) counts as done. */
-static int s_sync_dir(const char *path)
-{
-    const char *slash = strrchr(path, '/');
-    char dir[4096];
-    if (!slash)
-        snprintf(dir, sizeof dir, ".");
-    else if (slash == path)
-        snprintf(dir, sizeof dir, "/");
-    else if ((size_t)(slash - path) < sizeof dir)
-        snprintf(dir, sizeof dir, "%.*s", (int)(slash - path), path);
-    else
-        return ENAMETOOLONG;
-    int fd = open(dir, O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-    if (fd < 0)
-        return errno;
-    int e = fsync(fd) == 0 || errno == EINVAL ? 0 : errno;
-    close(fd);
-    return e;
-}
-
 int pf_image_write_exr(const pf_image_t *img, const char *path, int half, pf_error_t *err)
 {
     PF_CHECK(img != NULL && img->rgb != NULL && path != NULL);
@@ -214,7 +193,7 @@ int pf_image_write_exr(const pf_image_t *img, const char *path, int half, pf_err
         remove(tmp);
         return pf_error_set(err, PF_EIO, path, 0, "cannot rename %s into place: %s", tmp, strerror(e));
     }
-    int e = s_sync_dir(path);
+    int e = pf_image_sync_dir(path);
     if (e)
         return pf_error_set(err, PF_EIO, path, 0, "cannot sync the directory of %s: %s", path, strerror(e));
     return PF_OK;

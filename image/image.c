@@ -19,6 +19,7 @@
  *
  * No shared state: any thread may call any function on distinct images. */
 #include "image/image.h"
+#include "image/sync.h"
 
 #include <errno.h>
 #include <math.h>
@@ -107,13 +108,7 @@ static char *s_tmp_path(const char *path)
     return tmp;
 }
 
-/* Closes fp and renames tmp over path. On any failure tmp is removed, err is
- * filled and a negative status returned. fclose is checked because it is
- * where a buffered write first reports a full disk. */
-/* fsyncs the directory that holds path, so a rename into it survives a
- * crash. 0, or an errno; EINVAL (a file system that cannot sync a
- * directory) counts as done. */
-static int s_sync_dir(const char *path)
+int pf_image_sync_dir(const char *path)
 {
     const char *slash = strrchr(path, '/');
     char dir[4096];
@@ -133,6 +128,9 @@ static int s_sync_dir(const char *path)
     return e;
 }
 
+/* Closes fp and renames tmp over path. On any failure tmp is removed, err is
+ * filled and a negative status returned. fclose is checked because it is
+ * where a buffered write first reports a full disk. */
 static int s_commit(FILE *fp, const char *tmp, const char *path, pf_error_t *err)
 {
     /* The data reaches the disk before the name does: fsync the file, rename
@@ -153,7 +151,7 @@ static int s_commit(FILE *fp, const char *tmp, const char *path, pf_error_t *err
         remove(tmp);
         return pf_error_set(err, PF_EIO, path, 0, "cannot rename %s into place: %s", tmp, strerror(e));
     }
-    int e = s_sync_dir(path);
+    int e = pf_image_sync_dir(path);
     if (e)
         return pf_error_set(err, PF_EIO, path, 0, "cannot sync the directory of %s: %s", path, strerror(e));
     return PF_OK;

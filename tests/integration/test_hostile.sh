@@ -79,51 +79,10 @@ trap 'exit 130' INT TERM
 # shellcheck source=tests/integration/lib.sh
 . "$(dirname "$0")/lib.sh"
 
-# ---- processes (as in test_farm.sh) -------------------------------------------
+# ---- processes: start, wait_exit, wait_log, stop (procs.sh) -------------------
 
-LASTPID=0
-start() {
-    local name=$1
-    shift
-    "$@" >"$T/$name.out" 2>"$T/$name.err" &
-    LASTPID=$!
-    PIDS+=("$LASTPID")
-}
-
-rc=0
-wait_exit() {
-    local pid=$1 end=$((SECONDS + $2))
-    while kill -0 "$pid" 2>/dev/null && [ "$SECONDS" -lt "$end" ]; do
-        sleep 0.1
-    done
-    if kill -0 "$pid" 2>/dev/null; then
-        kill -9 "$pid" 2>/dev/null
-        wait "$pid" 2>/dev/null
-        rc=124
-        return 1
-    fi
-    wait "$pid" 2>/dev/null
-    rc=$?
-    return 0
-}
-
-wait_log() {
-    local end=$((SECONDS + $3))
-    while [ "$SECONDS" -lt "$end" ]; do
-        grep -qE "$2" "$1" 2>/dev/null && return 0
-        sleep 0.1
-    done
-    grep -qE "$2" "$1" 2>/dev/null
-}
-
-stop() {
-    local p
-    for p in "$@"; do
-        kill -9 "$p" 2>/dev/null
-        wait "$p" 2>/dev/null
-    done
-    return 0
-}
+# shellcheck source=tests/integration/procs.sh
+. "$(dirname "$0")/procs.sh"
 
 free_port() {
     python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])'
