@@ -62,7 +62,7 @@ int main(int argc, char **argv)
         pf_kdtree_t *tree = pf_kdtree_build(&copy, n);
         double t1 = pf_now();
         pf_kdtree_t *irr = NULL;
-        if (!tree || pf_irradiance_precompute(tree, (int)stride, s.global_k, r2, b.accel, threads, &irr) != PF_OK)
+        if (!tree || pf_irradiance_precompute(tree, (int)stride, s.global_k, r2, 1.0f, b.accel, threads, &irr) != PF_OK)
             return 1;
         double t2 = pf_now();
         printf("repetition %d: kd-tree %.2f s, irradiance %.2f s, sum %.2f s\n", r + 1, t1 - t0, t2 - t1, t2 - t0);

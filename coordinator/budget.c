@@ -189,6 +189,85 @@ void pf_budget_plan_spp(pf_budget_t *b, const pf_frame_t *frame, unsigned terms,
     b->planned_render_s = fixed + per_spp * spp;
 }
 
+double pf_budget_pass_seconds(const pf_budget_t *b, int pass)
+{
+    double t0 = b->limit_s / 40.0, tmax = b->limit_s / 8.0;
+    t0 = t0 < 0.25 ? 0.25 : t0 > 2.0 ? 2.0 : t0;
+    tmax = tmax > t0 ? tmax : t0;
+    double t = t0;
+    for (int i = 0; i < pass && t < tmax; i++)
+        t *= 1.5;
+    return t < tmax ? t : tmax;
+}
+
+double pf_budget_tiles_deadline(const pf_budget_t *b)
+{
+    return b->deadline - S_RESERVE_S - S_RESERVE_SHARE * b->limit_s;
+}
+
+int pf_budget_plan_pass_photons(pf_budget_t *b, int pass, pf_settings_t *s)
+{
+    double left = pf_budget_tiles_deadline(b) - pf_now();
+    double want = pf_budget_pass_seconds(b, pass);
+    if (want > left)
+        want = left;
+    double rate = b->pass_photon_s > 0.0 ? b->pass_photon_s : b->photon_s_per_photon;
+    int maps_n = (s->photons ? 1 : 0) + (s->caustic_photons ? 1 : 0);
+    uint64_t each = maps_n && rate > 0.0 ? s_clamp_photons(PF_BUDGET_PHOTON_SHARE * want / rate / maps_n) : 0;
+    if (s->photons && !b->fix_photons)
+        s->photons = each;
+    if (s->caustic_photons && !b->fix_caustic)
+        s->caustic_photons = each;
+    /* A pass needs its photons and at least one sample per pixel. */
+    double need = rate * (double)(s->photons + s->caustic_photons) + b->pass_fixed_s + b->pass_spp_s;
+    return pass > 0 && need > left;
+}
+
+void pf_budget_photons_done(pf_budget_t *b, double photon_s, uint64_t emitted)
+{
+    if (emitted > 0 && photon_s > 0.0)
+        b->pass_photon_s = photon_s / (double)emitted;
+}
+
+void pf_budget_plan_pass_spp(pf_budget_t *b, const pf_frame_t *frame, unsigned terms, int local_threads, int pass,
+                             double pass_start, pf_settings_t *s)
+{
+    if (pass == 0 || !(b->pass_spp_s > 0.0)) {
+        int fix = b->fix_spp;
+        b->fix_spp = 0;
+        pf_settings_t probe = *s;
+        pf_budget_plan_spp(b, frame, terms, local_threads, &probe);
+        b->fix_spp = fix;
+        double npx = (double)s->width * (double)s->height;
+        b->pass_fixed_s = npx * b->pixel_s / (double)b->render_threads;
+        b->pass_spp_s = npx * b->sample_s / (double)b->render_threads;
+    }
+    if (b->fix_spp)
+        return;
+    double end = pass_start + pf_budget_pass_seconds(b, pass), hard = pf_budget_tiles_deadline(b);
+    /* Within 1.5 passes of the deadline, this pass is the last: it takes
+     * what is left, rather than leave a sliver for a pass too short to pay
+     * for its photons. */
+    if (end > hard || hard - end < 0.5 * pf_budget_pass_seconds(b, pass + 1))
+        end = hard;
+    double spp = b->pass_spp_s > 0.0 ? floor(S_SAFETY * (end - pf_now() - b->pass_fixed_s) / b->pass_spp_s) : 1.0;
+    if (!(spp >= 1.0))
+        spp = 1.0;
+    if (spp > (double)(1 << 16))
+        spp = (double)(1 << 16);
+    s->spp = (int)spp;
+    b->planned_render_s = b->pass_fixed_s + b->pass_spp_s * spp;
+}
+
+void pf_budget_pass_done(pf_budget_t *b, int spp, double render_s)
+{
+    double per = spp > 0 ? (render_s - b->pass_fixed_s) / (double)spp : 0.0;
+    if (per > 0.0)
+        b->pass_spp_s = per;
+    else if (spp > 0 && render_s > 0.0)
+        b->pass_spp_s = render_s / (double)spp;
+}
+
 void pf_budget_log(const pf_budget_t *b, const pf_settings_t *s)
 {
     pf_info("time limit %.3g s: %" PRIu64 " global + %" PRIu64 " caustic photons, %d spp x %d gather rays "

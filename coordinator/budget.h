@@ -21,9 +21,17 @@
  *      pixel that fills the time left (less a reserve for writing the image
  *      and a safety margin) on all the threads that will render: this
  *      process's, or every worker's together.
- * The image is then rendered in one pass with that spp, so it is the same
- * image a render with those settings gives (deterministic given the choices;
- * the choices depend on the machine's speed). */
+ *   3. Passes. The render is progressive (photon/photonmap.h, PF_PASS_ALPHA):
+ *      pass i is planned to take pf_budget_pass_seconds(i), short at first
+ *      (an image exists early, for Ctrl-C and short limits) and growing to
+ *      an eighth of the limit; its photons get PF_BUDGET_PHOTON_SHARE of it
+ *      at the measured rate, its spp the rest at the measured cost of a
+ *      sample (the probe's for pass 0, the last pass's after). The last
+ *      pass is planned to end by the deadline; if it runs late it is cut at
+ *      tile granularity (the tiles it finished count: accum.h), so the
+ *      image is written in time.
+ * The choices depend on the machine's speed; the image of given pass
+ * settings does not. */
 #ifndef PF_BUDGET_H
 #define PF_BUDGET_H
 
@@ -55,6 +63,10 @@ typedef struct pf_budget {
     double photon_s_per_photon; /* calibration: seconds per photon */
     double pixel_s, sample_s;   /* thread-seconds a pixel costs: pixel_s + spp * sample_s */
     double planned_render_s;
+    /* Progressive passes: wall seconds of a pass's render, fixed + spp *
+     * per_spp (the probe's, then measured); the photon rate in wall seconds
+     * per photon emitted (calibration, then measured). */
+    double pass_fixed_s, pass_spp_s, pass_photon_s;
 } pf_budget_t;
 
 /* A budget of limit_s seconds counted from start (pf_now() at program start). */
@@ -73,6 +85,38 @@ int pf_budget_plan_photons(pf_budget_t *b, const pf_frame_t *frame, pf_settings_
  * (pf_frame_ready) as the real render's will be. Always succeeds; spp is at least 1 (a warning
  * says when even that will not fit). */
 void pf_budget_plan_spp(pf_budget_t *b, const pf_frame_t *frame, unsigned terms, int local_threads, pf_settings_t *s);
+
+/* Progressive passes under the limit (step 3 above). */
+
+/* The wall seconds pass `pass` is planned to take: a geometric series from
+ * limit / 40 (within [0.25, 2] s) by 1.5, to at most limit / 8. */
+double pf_budget_pass_seconds(const pf_budget_t *b, int pass);
+
+/* The deadline of the tiles: by then every tile of the last pass must be
+ * done, leaving the reserve for writing the image. */
+double pf_budget_tiles_deadline(const pf_budget_t *b);
+
+/* Sets s->photons and s->caustic_photons (those not fixed on the command
+ * line, and not 0) for pass `pass`: PF_BUDGET_PHOTON_SHARE of its seconds
+ * (less when fewer are left) at the measured rate. Needs
+ * pf_budget_plan_photons's calibration first. 0 when a pass still fits in
+ * the time left, 1 when none does (the render should stop). */
+int pf_budget_plan_pass_photons(pf_budget_t *b, int pass, pf_settings_t *s);
+
+/* The photon pass of a pass took photon_s for `emitted` photons: the rate
+ * for the next ones. */
+void pf_budget_photons_done(pf_budget_t *b, double photon_s, uint64_t emitted);
+
+/* Sets s->spp (unless fixed) for pass `pass`, its maps built, so the pass
+ * ends on plan (its seconds, counted from pass_start, or the tiles'
+ * deadline). Pass 0 probes the frame's cost first (as pf_budget_plan_spp);
+ * later ones use the measured cost. At least 1. */
+void pf_budget_plan_pass_spp(pf_budget_t *b, const pf_frame_t *frame, unsigned terms, int local_threads, int pass,
+                             double pass_start, pf_settings_t *s);
+
+/* A pass's tiles took render_s at spp samples per pixel, whole: the cost of
+ * a sample for the next. */
+void pf_budget_pass_done(pf_budget_t *b, int spp, double render_s);
 
 /* Logs the plan: the settings chosen and the measurements behind them. */
 void pf_budget_log(const pf_budget_t *b, const pf_settings_t *s);

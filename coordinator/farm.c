@@ -87,28 +87,51 @@ static int s_photon_blobs(pf_fm_photons_t *p)
     return rc;
 }
 
+/* The photon pass of pass p->pass (the frame is opened for the first):
+ * under a time limit its photons are planned first and its spp after. */
+static void s_photon_pass(pf_fm_photons_t *p)
+{
+    pf_frame_t *fr = &p->frame;
+    pf_budget_t *b = p->budget;
+    p->settings = p->base;
+    p->settings.pass = p->pass;
+    p->settings.seed = pf_pass_seed(p->base.seed, p->pass);
+    if (b && p->pass == 0)
+        p->rc = pf_budget_plan_photons(b, fr, &p->settings); /* the calibration: the photon rate */
+    if (p->rc == PF_OK && b && p->progressive && pf_budget_plan_pass_photons(b, p->pass, &p->settings)) {
+        p->no_pass = 1;
+        return;
+    }
+    double t0 = pf_now();
+    pf_frame_drop_maps(fr);
+    if (p->rc == PF_OK)
+        p->rc = pf_photon_pass(p->scene, fr->accel, fr->lights, &p->settings, &fr->maps, &p->stats);
+    if (p->rc) {
+        pf_error_set(&p->err, p->rc, NULL, 0, "photon pass failed: %s", pf_strerror(p->rc));
+        return;
+    }
+    if (b && p->progressive)
+        pf_budget_photons_done(b, pf_now() - t0, p->settings.photons + fr->maps.caustic_emitted);
+    pf_photon_skip_gather(&p->stats, &p->settings);
+    if (b) {
+        /* The probe renders here with the coordinator's cores, as the workers will. */
+        pf_frame_ready(fr);
+        if (p->progressive)
+            pf_budget_plan_pass_spp(b, fr, p->terms, p->settings.threads, p->pass, t0, &p->settings);
+        else
+            pf_budget_plan_spp(b, fr, p->terms, p->settings.threads, &p->settings);
+        if (p->pass == 0)
+            pf_budget_log(b, &p->settings);
+    }
+}
+
 static void *s_photon_thread(void *arg)
 {
     pf_fm_photons_t *p = arg;
-    pf_frame_t *fr = &p->frame;
-    p->rc = pf_frame_open(fr, p->scene, &p->err);
-    if (p->rc == PF_OK) {
-        if (p->budget)
-            p->rc = pf_budget_plan_photons(p->budget, fr, &p->settings);
-        if (p->rc == PF_OK)
-            p->rc = pf_photon_pass(p->scene, fr->accel, fr->lights, &p->settings, &fr->maps, &p->stats);
-        if (p->rc)
-            pf_error_set(&p->err, p->rc, NULL, 0, "photon pass failed: %s", pf_strerror(p->rc));
-    }
+    p->rc = p->frame.accel ? PF_OK : pf_frame_open(&p->frame, p->scene, &p->err);
     if (p->rc == PF_OK)
-        pf_photon_skip_gather(&p->stats, &p->settings);
-    if (p->rc == PF_OK && p->budget) {
-        /* The probe renders here with the coordinator's cores, as the workers will. */
-        pf_frame_ready(fr);
-        pf_budget_plan_spp(p->budget, fr, p->terms, p->settings.threads, &p->settings);
-        pf_budget_log(p->budget, &p->settings);
-    }
-    if (p->rc == PF_OK)
+        s_photon_pass(p);
+    if (p->rc == PF_OK && !p->no_pass)
         p->rc = s_photon_blobs(p);
     __atomic_store_n(&p->done, 1, __ATOMIC_RELEASE);
     return NULL;
@@ -360,15 +383,24 @@ static int s_start_local_workers(pf_fm_t *f, pf_error_t *err)
     return PF_OK;
 }
 
-/* The photon pass runs beside the event loop. */
+/* The photon pass runs beside the event loop: the first pass's with
+ * scene, settings and terms given; the next pass's (pf_fm_pass_reset) with
+ * scene NULL. */
 static int s_start_photons(pf_fm_t *f, const pf_scene_t *scene, const pf_settings_t *s, unsigned terms,
                            pf_error_t *err)
 {
-    f->ph.scene = scene;
-    f->ph.settings = *s;
-    f->ph.budget = f->o->budget;
-    f->ph.terms = terms;
+    if (scene) {
+        f->ph.scene = scene;
+        f->ph.base = *s;
+        f->ph.budget = f->o->budget;
+        f->ph.terms = terms;
+        f->ph.progressive = pf_fm_progressive(f);
+    }
     f->ph.job = f->job;
+    f->ph.rc = PF_OK;
+    f->ph.no_pass = 0;
+    memset(&f->ph.stats, 0, sizeof f->ph.stats);
+    f->ph.done = 0;
     if (pthread_create(&f->phtid, NULL, s_photon_thread, &f->ph) != 0)
         return pf_error_set(err, PF_ENOMEM, NULL, 0, "cannot start the photon pass thread");
     f->ph_started = 1;
@@ -386,10 +418,16 @@ static int s_on_photons_done(pf_fm_t *f, pf_error_t *err)
         *err = f->ph.err;
         return f->ph.rc;
     }
-    sum->photons = f->ph.stats;
-    sum->photon_s = pf_now() - f->t0;
     pf_progress_end(&f->bar);
-    pf_info("photon pass: %llu global + %llu caustic photons, %llu irradiance points; scene blob %llu bytes, "
+    if (f->ph.no_pass)
+        return PF_OK; /* the caller ends the render */
+    sum->photons = f->ph.stats;
+    sum->photons_total += f->ph.settings.photons + f->ph.frame.maps.caustic_emitted;
+    if (f->ph.pass == 0)
+        sum->photon_s = pf_now() - f->t0;
+    sum->photon_total_s += f->ph.stats.trace_s + f->ph.stats.build_s + f->ph.stats.irradiance_s;
+    sum->settings = f->ph.settings;
+    pf_log(f->ph.pass ? PF_LOG_DEBUG : PF_LOG_INFO, "photon pass: %llu global + %llu caustic photons, %llu irradiance points; scene blob %llu bytes, "
             "map blob %llu bytes (%.1f bytes per photon)",
             (unsigned long long)f->ph.stats.global_stored, (unsigned long long)f->ph.stats.caustic_stored,
             (unsigned long long)f->ph.stats.irradiance_points, (unsigned long long)f->ph.scene_size,
@@ -400,7 +438,9 @@ static int s_on_photons_done(pf_fm_t *f, pf_error_t *err)
                                 s, f->ph.terms, (uint32_t)f->ts };
     pf_xfer_set_blobs(f->xfer, &f->ph.scene_fb, &f->ph.maps_fb);
     f->job_ready = 1;
-    f->render_start = pf_now();
+    f->pass_start = pf_now();
+    if (f->ph.pass == 0)
+        f->render_start = f->pass_start;
     pf_progress_begin(&f->bar, "render", f->o->show_progress);
     for (int i = 0; i < f->reg.nw; i++)
         if (f->reg.w[i].state == PF_W_HELLO)
@@ -487,8 +527,46 @@ static void s_note_progress(pf_fm_t *f, int alive)
     }
 }
 
-/* The event loop: runs until every tile is done, *stop is set, the photon
- * pass fails, polling fails, or no worker has been alive for max_wait_s. */
+/* The passes, at the top of each turn of the event loop: 1 when the render
+ * is over (every tile in; for progressive passes, the last pass in, or a
+ * stop, or the deadline: the pass under way is cut), 0 to go on (the next
+ * pass's photon pass started when one was whole), or a status. */
+static int s_pass_turn(pf_fm_t *f, volatile int *stop, pf_error_t *err)
+{
+    int stopped = stop && *stop;
+    if (!pf_fm_progressive(f)) {
+        if (stopped)
+            return pf_error_set(err, PF_EINTERRUPTED, NULL, 0, "interrupted");
+        return f->L.ndone == f->L.nt;
+    }
+    if (f->job_ready && f->L.ndone == f->L.nt) {
+        pf_fm_pass_whole(f);
+        if (!pf_fm_pass_more(f, stop)) {
+            f->sum->interrupted = stopped;
+            return 1;
+        }
+        pf_progress_end(&f->bar);
+        int rc = pf_fm_pass_reset(f, err);
+        if (rc == PF_OK)
+            rc = s_start_photons(f, NULL, NULL, 0, err);
+        pf_progress_begin(&f->bar, "photons", f->o->show_progress);
+        return rc;
+    }
+    const pf_budget_t *b = f->o->budget;
+    int late = b && f->ph.pass > 0 && pf_now() > pf_budget_tiles_deadline(b);
+    if (!stopped && !late)
+        return 0;
+    if (f->job_ready)
+        pf_fm_pass_cut(f);
+    f->sum->interrupted = stopped;
+    if (f->sum->passes_whole == 0 && f->sum->cut_tiles == 0)
+        return pf_error_set(err, PF_EINTERRUPTED, NULL, 0, "interrupted before any tile was done");
+    return 1;
+}
+
+/* The event loop: runs until every tile is done (every pass's), *stop is
+ * set, the photon pass fails, polling fails, or no worker has been alive
+ * for max_wait_s. */
 static int s_event_loop(pf_fm_t *f, volatile int *stop, pf_error_t *err)
 {
     const pf_farm_opts_t *opts = f->o;
@@ -497,14 +575,15 @@ static int s_event_loop(pf_fm_t *f, volatile int *stop, pf_error_t *err)
     f->render_start = 0.0;
     f->last_log = pf_now();
     f->no_worker_since = pf_now();
-    while (f->L.ndone < f->L.nt) {
-        if (stop && *stop) {
-            rc = pf_error_set(err, PF_EINTERRUPTED, NULL, 0, "interrupted");
+    for (;;) {
+        int over = s_pass_turn(f, stop, err);
+        if (over != 0) {
+            rc = over < 0 ? over : PF_OK;
             break;
         }
         if (!f->job_ready && __atomic_load_n(&f->ph.done, __ATOMIC_ACQUIRE)) {
             rc = s_on_photons_done(f, err);
-            if (rc != PF_OK)
+            if (rc != PF_OK || f->ph.no_pass)
                 break;
         }
         /* Chunks waiting for a transfer window to open: look again soon. */
@@ -539,6 +618,8 @@ static int s_event_loop(pf_fm_t *f, volatile int *stop, pf_error_t *err)
     pf_progress_end(&f->bar);
     if (rc == PF_OK)
         f->sum->render_s = pf_now() - f->render_start;
+    if (rc == PF_OK && pf_fm_progressive(f))
+        pf_fm_pass_resolve(f);
     return rc;
 }
 
@@ -616,6 +697,7 @@ static void s_free(pf_fm_t *f)
     pf_fm_verify_free(f);
     pf_leases_free(&f->L);
     pf_registry_free(&f->reg);
+    pf_accum_free(&f->acc);
 }
 
 int pf_farm_render(const pf_scene_t *scene, const pf_settings_t *settings, unsigned terms, const pf_farm_opts_t *opts,
@@ -632,6 +714,7 @@ int pf_farm_render(const pf_scene_t *scene, const pf_settings_t *settings, unsig
     f.job = ((uint64_t)getpid() << 32) ^ (uint64_t)(t0 * 1000.0);
     if (f.job == 0)
         f.job = 1;
+    f.job0 = f.job;
 
     pf_settings_t s = *settings;
     if (s.threads <= 0)
@@ -640,6 +723,8 @@ int pf_farm_render(const pf_scene_t *scene, const pf_settings_t *settings, unsig
     if (rc)
         return pf_error_set(err, rc, NULL, 0, "cannot allocate a %dx%d image", s.width, s.height);
     rc = s_alloc_tables(&f, &s, err);
+    if (rc == PF_OK && pf_fm_progressive(&f) && pf_accum_init(&f.acc, s.width, s.height) != PF_OK)
+        rc = pf_error_set(err, PF_ENOMEM, NULL, 0, "cannot allocate the passes' %dx%d sums", s.width, s.height);
     if (rc == PF_OK)
         rc = s_open_socket(&f, err);
     if (rc == PF_OK)

@@ -32,7 +32,10 @@ typedef struct pf_farm_opts {
     const char *curve_secret; /* coordinator key file (public + secret), NULL: no CURVE */
     const char *curve_allow;  /* file of allowed worker public keys (required with curve_secret) */
     int show_progress;
-    pf_budget_t *budget;      /* a time limit: photons and spp are planned on the coordinator (NULL: none) */
+    pf_budget_t *budget;      /* a time limit: progressive passes until its deadline, their photons and spp planned
+                                 on the coordinator (NULL: none) */
+    int passes;               /* progressive passes (job.h): each a job of its own maps, the image their running
+                                 mean (0 or 1: one pass, unless a time limit) */
     /* Budgets against hostile peers (docs/farm.md, "Hostile peers"). */
     int max_workers;          /* registry slots; dead ones are reused (default 1024) */
     double hello_rate;        /* HELLOs served per second, all peers together; the excess is dropped (default 100;
@@ -74,11 +77,19 @@ typedef struct pf_farm_summary {
     pf_farm_worker_stat_t per_worker[64];
     int nper_worker;
     size_t bad_pixels;
+    /* Progressive passes, as pf_job_summary_t has them. */
+    int passes, passes_whole, cut_tiles, cut_total, interrupted;
+    uint64_t spp_total, photons_total;
+    double error_est, photon_total_s;
+    size_t unreached;
+    pf_settings_t settings; /* the last pass's */
 } pf_farm_summary_t;
 
 /* Renders scene with settings through workers into *img (allocated here).
  * Blocks until the image is complete, an error, or *stop becomes non-zero
- * (PF_EINTERRUPTED). Local workers are stopped on every path. */
+ * (PF_EINTERRUPTED; with progressive passes, the image of the passes done
+ * and summary->interrupted, unless no tile was done). Local workers are
+ * stopped on every path. */
 int pf_farm_render(const pf_scene_t *scene, const pf_settings_t *settings, unsigned terms, const pf_farm_opts_t *opts,
                    volatile int *stop, pf_image_t *img, pf_farm_summary_t *summary, pf_error_t *err);
 

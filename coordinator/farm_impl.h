@@ -10,6 +10,7 @@
 #include <stdint.h>
 #include <sys/types.h>
 
+#include "coordinator/accum.h"
 #include "coordinator/budget.h"
 #include "coordinator/leases.h"
 #include "coordinator/progress.h"
@@ -26,7 +27,12 @@
 /* The photon pass, run in its own thread. */
 typedef struct pf_fm_photons {
     const pf_scene_t *scene;
-    pf_settings_t settings; /* a time limit changes them here, before the job goes out */
+    pf_settings_t base;     /* the render's settings */
+    pf_settings_t settings; /* this pass's: its seed and index; a time limit plans them here, before the job
+                               goes out */
+    int pass;               /* the progressive pass traced (0: the first, or the only one) */
+    int progressive;
+    int no_pass;            /* set by the thread: no pass fits in the time left (nothing was traced) */
     pf_budget_t *budget;
     unsigned terms;
     uint64_t job;
@@ -85,6 +91,11 @@ typedef struct pf_fm {
     uint32_t evict_uid[16];
     char evict_why[16][96];
     int nevict;
+    /* Progressive passes (farm_pass.c): the running mean, the first job id
+     * (pass i is job job0 + i), when this pass's tiles began. */
+    pf_accum_t acc;
+    uint64_t job0;
+    double pass_start;
 } pf_fm_t;
 
 /* farm_peers.c */
@@ -117,6 +128,25 @@ void pf_fm_evict(pf_fm_t *f, int wi, const char *why);
 void pf_fm_evict_pending(pf_fm_t *f);
 /* One frame from routing identity id (key: its CURVE key, or NULL). */
 void pf_fm_on_frame(pf_fm_t *f, const uint8_t *id, size_t idlen, const char *key, const uint8_t *data, size_t len);
+
+/* farm_pass.c */
+
+/* Whether the render is progressive (more than one pass may be rendered). */
+int pf_fm_progressive(const pf_fm_t *f);
+/* Every tile of the current pass is done: adds the pass to the running
+ * mean; logs it. */
+void pf_fm_pass_whole(pf_fm_t *f);
+/* The render stops inside a pass (deadline, signal): the tiles of the
+ * current pass that are done go into the running mean. */
+void pf_fm_pass_cut(pf_fm_t *f);
+/* 1 when another pass should follow the one just added. */
+int pf_fm_pass_more(const pf_fm_t *f, volatile int *stop);
+/* Readies the tables for the next pass (leases, checks, the workers'
+ * transfer state; a new job id): the caller then starts its photon pass.
+ * 0 or PF_ENOMEM. */
+int pf_fm_pass_reset(pf_fm_t *f, pf_error_t *err);
+/* The running mean into f->img. */
+void pf_fm_pass_resolve(pf_fm_t *f);
 
 /* verify.c */
 

@@ -61,9 +61,13 @@ static void s_usage(FILE *f)
             "      --exposure STOPS     PNG exposure in stops (0)\n"
             "      --quality PRESET     draft, default or high: spp and photons from the\n"
             "                           benchmark curves (docs/benchmarks.md); other options override\n"
-            "      --time-limit SECONDS finish within SECONDS of wall clock (everything included) with the\n"
-            "                           lowest error it can: photons and spp chosen by measuring this\n"
-            "                           machine (or farm); given --spp/--photons are kept\n"
+            "      --passes N           progressive: N independent passes, each with --spp samples per\n"
+            "                           pixel and --photons photons of its own, photon radii shrinking\n"
+            "                           from pass to pass; the image is their mean (1)\n"
+            "      --time-limit SECONDS progressive passes until SECONDS of wall clock (everything\n"
+            "                           included): each pass's photons and spp chosen by measuring this\n"
+            "                           machine (or farm); given --spp/--photons are kept per pass.\n"
+            "                           Ctrl-C writes the image of the passes done\n"
             "      --terms LIST         render only these terms: emitted,direct,caustic,indirect (all);\n"
             "                           photonmap shows the global map's radiance (debugging)\n"
             "      --strict             a .pbrt scene that asks for anything approximated or ignored\n"
@@ -206,15 +210,17 @@ enum {
     OPT_HDR = 256, OPT_SIZE, OPT_SPP, OPT_PHOTONS, OPT_CPHOTONS, OPT_GATHER, OPT_GFILTER, OPT_LSAMPLES, OPT_GK, OPT_CK, OPT_CR,
     OPT_DEPTH, OPT_THREADS, OPT_SEED, OPT_EXPOSURE, OPT_TERMS, OPT_WORKERS, OPT_BIND, OPT_MINW, OPT_CSECRET,
     OPT_CALLOW, OPT_TILE, OPT_HB, OPT_WATCHDOG, OPT_MAXWAIT, OPT_WEXE, OPT_TLIMIT, OPT_QUALITY, OPT_STRICT,
-    OPT_LEASE, OPT_STRIKES, OPT_VERIFY,
+    OPT_LEASE, OPT_STRIKES, OPT_VERIFY, OPT_PASSES,
 };
 
-/* SIGINT and SIGTERM. The farm's event loop polls s_interrupted (the signal's
- * number) and stops; the command then exits 128 + that number, as a shell
- * reports a process a signal killed (130, 143). The in-process render has no
- * way to stop midway: there the handler says so on stderr and exits at once
- * with that code (the image files are written to a temporary name and
- * renamed, so a half-written output never takes the real name). */
+/* SIGINT and SIGTERM. The farm's event loop and the progressive passes poll
+ * s_interrupted (the signal's number) and stop: progressive passes write
+ * the image of the passes done. The command then exits 128 + that number,
+ * as a shell reports a process a signal killed (130, 143). A one-pass
+ * render in this process has nothing whole to write before its end: there
+ * the handler says so on stderr and exits at once with that code (the
+ * image files are written to a temporary name and renamed, so a
+ * half-written output never takes the real name). */
 static volatile int s_interrupted; /* int: pf_farm_render's stop flag (written whole by the handler) */
 static void s_on_signal(int sig)
 {
@@ -257,7 +263,7 @@ static const struct option s_render_opts[] = {
     { "worker-exe", required_argument, 0, OPT_WEXE }, { "time-limit", required_argument, 0, OPT_TLIMIT },
     { "quality", required_argument, 0, OPT_QUALITY }, { "strict", no_argument, 0, OPT_STRICT },
     { "lease-timeout", required_argument, 0, OPT_LEASE }, { "max-strikes", required_argument, 0, OPT_STRIKES },
-    { "verify", required_argument, 0, OPT_VERIFY },
+    { "verify", required_argument, 0, OPT_VERIFY }, { "passes", required_argument, 0, OPT_PASSES },
     { 0, 0, 0, 0 },
 };
 
@@ -280,6 +286,7 @@ typedef struct s_render_args {
     pf_farm_opts_t farm;
     int workers;
     float time_limit;
+    int passes; /* --passes: progressive passes (0: one, or as many as a time limit allows) */
     const pf_quality_t *quality;
     int strict; /* --strict: loader warnings are errors */
 } s_render_args;
@@ -352,6 +359,7 @@ static int s_parse_render_args(int argc, char **argv, s_render_args *a)
         case OPT_VERIFY: bad = s_parse_float(optarg, &fval) || fval < 0 || fval > 1; farm->verify = fval; break;
         case OPT_WEXE: farm->worker_exe = optarg; break;
         case OPT_TLIMIT: bad = s_parse_float(optarg, &a->time_limit) || a->time_limit <= 0 || a->time_limit > 1e7; break;
+        case OPT_PASSES: bad = s_parse_int(optarg, 1, PF_MAX_PASSES, &a->passes); break;
         case OPT_QUALITY: bad = (a->quality = s_find_quality(optarg)) == NULL; break;
         case OPT_STRICT: a->strict = 1; break;
         case 'q': pf_log_set_level(PF_LOG_ERROR); break;
@@ -445,7 +453,7 @@ static void s_plan(const pf_scene_t *scene, const s_render_args *a, const pf_set
         budget->fix_photons = o->has_photons;
         budget->fix_caustic = o->has_cphotons;
         budget->fix_spp = o->has_spp;
-        pf_info("settings: %dx%d, time limit %.3g s (photons and spp chosen below), %d gather rays (filter %d), "
+        pf_info("settings: %dx%d, time limit %.3g s (passes until then, photons and spp chosen below), %d gather rays (filter %d), "
                 "%d light samples, seed %" PRIu64,
                 s->width, s->height, time_limit, s->gather, s->gather_filter, s->light_samples, s->seed);
     } else {
@@ -466,6 +474,7 @@ static int s_render_farm(pf_scene_t **scene_p, s_render_args *a, pf_budget_t *bu
     farm->worker_threads = a->o.has_threads ? a->o.threads : 0;
     farm->show_progress = 1;
     farm->budget = a->time_limit > 0 ? budget : NULL;
+    farm->passes = a->passes;
     s->threads = 0;
     s_catch_signals(s_on_signal);
     signal(SIGPIPE, SIG_IGN);
@@ -482,6 +491,16 @@ static int s_render_farm(pf_scene_t **scene_p, s_render_args *a, pf_budget_t *bu
     sum->accel_s = 0;
     sum->photons = fs.photons;
     sum->render_s = fs.render_s;
+    sum->photon_s = fs.photon_total_s;
+    sum->passes = fs.passes;
+    sum->passes_whole = fs.passes_whole;
+    sum->cut_tiles = fs.cut_tiles;
+    sum->cut_total = fs.cut_total;
+    sum->spp_total = fs.spp_total;
+    sum->photons_total = fs.photons_total;
+    sum->error_est = fs.error_est;
+    sum->interrupted = fs.interrupted;
+    sum->unreached = fs.unreached;
     return 0;
 }
 
@@ -490,12 +509,17 @@ static int s_render_farm(pf_scene_t **scene_p, s_render_args *a, pf_budget_t *bu
 static int s_render_here(pf_scene_t **scene_p, const s_render_args *a, pf_budget_t *budget, const pf_settings_t *s,
                          pf_image_t *img, pf_job_summary_t *sum, pf_error_t *err)
 {
-    s_catch_signals(s_on_signal_exit);
-    int rc = pf_job_render(*scene_p, s, a->terms, 1, a->time_limit > 0 ? budget : NULL, img, sum, err);
+    /* Progressive passes stop at the next tile and write what they have;
+     * one pass has nothing whole to write before its end. */
+    int progressive = a->time_limit > 0 || a->passes > 1;
+    s_catch_signals(progressive ? s_on_signal : s_on_signal_exit);
+    pf_job_run_t run = { .show_progress = 1, .budget = a->time_limit > 0 ? budget : NULL, .passes = a->passes,
+                         .stop = &s_interrupted };
+    int rc = pf_job_render(*scene_p, s, a->terms, &run, img, sum, err);
     pf_scene_destroy(scene_p);
     if (rc != PF_OK) {
         pf_error("render failed: %s", err->msg);
-        return EXIT_RENDER;
+        return rc == PF_EINTERRUPTED ? 128 + (s_interrupted ? (int)s_interrupted : SIGINT) : EXIT_RENDER;
     }
     return 0;
 }
@@ -521,9 +545,18 @@ static int s_write_output(const s_render_args *a, const pf_settings_t *s, pf_ima
         return EXIT_RENDER;
     }
     double total = pf_now() - t0;
+    if (sum->passes > 1 || a->passes > 1 || time_limit > 0) {
+        char cut[96] = "";
+        if (sum->cut_total)
+            snprintf(cut, sizeof cut, " + %d of %d tiles of pass %d", sum->cut_tiles, sum->cut_total, sum->passes);
+        pf_info("passes: %d whole%s, %" PRIu64 " samples per pixel and %" PRIu64 " photons in all, est. relMSE %.2g%s",
+                sum->passes_whole, cut, sum->spp_total, sum->photons_total, sum->error_est,
+                sum->interrupted ? " (interrupted)" : "");
+    }
     pf_info("done in %.2f s: photons %.2f s, render %.2f s -> %s%s%s", total,
-            sum->photons.trace_s + sum->photons.build_s + sum->photons.irradiance_s, sum->render_s, out, hdr ? ", " : "",
-            hdr ? hdr : "");
+            sum->photon_s > 0 ? sum->photon_s
+                              : sum->photons.trace_s + sum->photons.build_s + sum->photons.irradiance_s,
+            sum->render_s, out, hdr ? ", " : "", hdr ? hdr : "");
     if (time_limit > 0 && total > time_limit)
         pf_warn("the time limit of %.3g s was overrun by %.2f s", time_limit, total - time_limit);
     return 0;
@@ -556,7 +589,10 @@ static int s_cmd_render(int argc, char **argv)
         code = s_render_here(&scene, &a, &budget, &s, &img, &sum, &err);
     if (code != 0)
         return code;
-    return s_write_output(&a, &s, &img, &sum, t0, &err);
+    code = s_write_output(&a, &s, &img, &sum, t0, &err);
+    if (code == 0 && sum.interrupted)
+        code = 128 + (s_interrupted ? (int)s_interrupted : SIGINT);
+    return code;
 }
 
 /* photonfarm keygen NAME: a CURVE key pair in NAME.key (secret, mode 0600)

@@ -38,6 +38,10 @@ typedef struct s_slot {
 
 struct pf_xfer {
     pf_framed_blob_t blob[2]; /* scene, maps */
+    /* Blobs of earlier progressive passes: libzmq may still hold their
+     * chunks (see Lifetime), so they are freed with the server. */
+    pf_framed_blob_t *retired;
+    size_t nretired, cap_retired;
     s_slot *slots;
     int nslots, window;
 };
@@ -147,15 +151,39 @@ void pf_xfer_destroy(pf_xfer_t **x_p)
         s_acct_release(x->slots[i].acct);
     pf_framed_blob_free(&x->blob[0]);
     pf_framed_blob_free(&x->blob[1]);
+    for (size_t i = 0; i < x->nretired; i++)
+        pf_framed_blob_free(&x->retired[i]);
+    free(x->retired);
     free(x->slots);
     free(x);
     *x_p = NULL;
 }
 
+/* An earlier pass's blob, kept until the server goes (or freed now when
+ * there is no room to keep it and no worker has chunks in flight). */
+static void s_retire(pf_xfer_t *x, pf_framed_blob_t *fb)
+{
+    if (!fb->data)
+        return;
+    if (x->nretired == x->cap_retired) {
+        size_t cap = x->cap_retired ? 2 * x->cap_retired : 8;
+        pf_framed_blob_t *r = realloc(x->retired, cap * sizeof *r);
+        if (r) {
+            x->retired = r;
+            x->cap_retired = cap;
+        }
+    }
+    if (x->nretired < x->cap_retired)
+        x->retired[x->nretired++] = *fb;
+    else
+        pf_framed_blob_free(fb); /* out of memory: the old behaviour, safe once transfers are over */
+    memset(fb, 0, sizeof *fb);
+}
+
 void pf_xfer_set_blobs(pf_xfer_t *x, pf_framed_blob_t *scene, pf_framed_blob_t *maps)
 {
-    pf_framed_blob_free(&x->blob[0]);
-    pf_framed_blob_free(&x->blob[1]);
+    s_retire(x, &x->blob[0]);
+    s_retire(x, &x->blob[1]);
     x->blob[0] = *scene;
     x->blob[1] = *maps;
     memset(scene, 0, sizeof *scene);

@@ -58,7 +58,9 @@ pf_xfer_t *pf_xfer_new(int nslots, int window);
  * zmq_ctx_term (see Lifetime). NULL-safe; sets *x_p = NULL. */
 void pf_xfer_destroy(pf_xfer_t **x_p);
 
-/* Takes the two blobs (*scene and *maps are zeroed). */
+/* Takes the two blobs (*scene and *maps are zeroed). Blobs set before (an
+ * earlier progressive pass's) are kept until pf_xfer_destroy, as libzmq may
+ * still hold their chunks. */
 void pf_xfer_set_blobs(pf_xfer_t *x, pf_framed_blob_t *scene, pf_framed_blob_t *maps);
 
 /* A new worker in this slot: what was asked for the old one is forgotten

@@ -12,8 +12,8 @@
 #include "accel/accel.h"
 #include "photon/photonmap.h"
 
-int pf_irradiance_precompute(const pf_kdtree_t *global, int stride, int k, float max_r2, const pf_accel_t *accel,
-                             int threads, pf_kdtree_t **out)
+int pf_irradiance_precompute(const pf_kdtree_t *global, int stride, int k, float max_r2, float shrink2,
+                             const pf_accel_t *accel, int threads, pf_kdtree_t **out)
 {
     if (stride < 1)
         stride = 1;
@@ -44,7 +44,7 @@ int pf_irradiance_precompute(const pf_kdtree_t *global, int stride, int k, float
             const pf_photon_t *p = &ph[i * (size_t)stride];
             pf_vec3 nrm = pf_photon_normal(p);
             float r2 = 0.0f;
-            pf_vec3 e = pf_pm_irradiance_hint(global, pf_photon_pos(p), nrm, k, max_r2, hint, scratch, &r2);
+            pf_vec3 e = pf_pm_estimate(global, pf_photon_pos(p), nrm, k, max_r2, hint, shrink2, 0, scratch, &r2);
             hint = r2 < max_r2 ? fminf(1.44f * r2, max_r2) : max_r2;
             float r = sqrtf(r2);
             uint32_t support;

@@ -74,6 +74,7 @@ uint64_t pf_settings_hash(const pf_settings_t *s)
     n += s_put_f32(buf + n, s->global_radius);
     n += s_put_u32(buf + n, (uint32_t)(int32_t)s->irradiance_stride);
     n += s_put_u64(buf + n, s->seed);
+    n += s_put_u32(buf + n, (uint32_t)(int32_t)s->pass);
     return pf_hash_bytes(PF_HASH_INIT, buf, n);
 }
 

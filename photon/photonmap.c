@@ -9,6 +9,7 @@
 #include <string.h>
 
 #include "base/status.h"
+#include "scene/scene.h"
 #include "material/bsdf.h"
 #include "photon/photon.h"
 
@@ -246,69 +247,88 @@ pf_vec3 pf_pm_irradiance(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int k, fl
     return pf_pm_irradiance_hint(map, x, n, k, max_r2, INFINITY, scratch, r2_out);
 }
 
-pf_vec3 pf_pm_irradiance_hint(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int k, float max_r2, float hint_r2,
-                              pf_pm_scratch_t *scratch, float *r2_out)
+/* The estimate over the photons s_gather found (cnt of them, the k-th at
+ * squared distance r2): over the disc of squared radius shrink2 r2, with a
+ * constant kernel or, with cone, Jensen's cone filter. shrink2 = 1 keeps
+ * every photon found (no distance test), so the sums are the unshrunk
+ * estimate's, bit for bit. */
+static pf_vec3 s_estimate(const pf_kdtree_t *map, const pf_pm_scratch_t *scratch, size_t cnt, pf_vec3 n, float r2,
+                          float shrink2, int cone)
 {
-    float r2 = max_r2;
-    size_t cnt = s_gather(map, x, k, max_r2, hint_r2, scratch, &r2);
-    if (r2_out)
-        *r2_out = r2;
     if (cnt == 0 || !(r2 > 0.0f))
         return pf_v3s(0.0f);
+    float rs2 = shrink2 < 1.0f ? r2 * shrink2 : r2;
+    if (!(rs2 > 0.0f))
+        return pf_v3s(0.0f);
     const pf_photon_t *ph = pf_kdtree_photons(map);
+    double r = sqrt((double)rs2);
     double s[3] = { 0, 0, 0 };
     for (size_t i = 0; i < cnt; i++) {
         const pf_photon_t *p = &ph[scratch->found[i].index];
         if (!pf_photon_normal_agrees(p, n, PF_NORMAL_AGREE))
             continue;
-        s[0] += p->power[0];
-        s[1] += p->power[1];
-        s[2] += p->power[2];
-    }
-    double inv = 1.0 / (PF_PI * (double)r2);
-    return pf_v3((float)(s[0] * inv), (float)(s[1] * inv), (float)(s[2] * inv));
-}
-
-pf_vec3 pf_pm_irradiance_cone(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int k, float max_r2, float hint_r2,
-                              pf_pm_scratch_t *scratch, float *r2_out)
-{
-    float r2 = max_r2;
-    size_t cnt = s_gather(map, x, k, max_r2, hint_r2, scratch, &r2);
-    if (r2_out)
-        *r2_out = r2;
-    if (cnt == 0 || !(r2 > 0.0f))
-        return pf_v3s(0.0f);
-    const pf_photon_t *ph = pf_kdtree_photons(map);
-    double r = sqrt((double)r2);
-    double s[3] = { 0, 0, 0 };
-    for (size_t i = 0; i < cnt; i++) {
-        const pf_photon_t *p = &ph[scratch->found[i].index];
-        if (!pf_photon_normal_agrees(p, n, PF_NORMAL_AGREE))
+        float d2 = scratch->found[i].d2;
+        double w = 1.0;
+        if (cone) {
+            w = 1.0 - sqrt((double)d2) / r;
+            if (w <= 0.0)
+                continue;
+        } else if (shrink2 < 1.0f && !(d2 < rs2)) {
             continue;
-        double w = 1.0 - sqrt((double)scratch->found[i].d2) / r;
-        if (w <= 0.0)
-            continue;
+        }
         s[0] += w * p->power[0];
         s[1] += w * p->power[1];
         s[2] += w * p->power[2];
     }
     /* The cone of height 1 over the disc holds pi r^2 / 3; normalize to the disc. */
-    double inv = 3.0 / (PF_PI * (double)r2);
+    double inv = (cone ? 3.0 : 1.0) / (PF_PI * (double)rs2);
     return pf_v3((float)(s[0] * inv), (float)(s[1] * inv), (float)(s[2] * inv));
 }
 
+pf_vec3 pf_pm_irradiance_hint(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int k, float max_r2, float hint_r2,
+                              pf_pm_scratch_t *scratch, float *r2_out)
+{
+    return pf_pm_estimate(map, x, n, k, max_r2, hint_r2, 1.0f, 0, scratch, r2_out);
+}
+
+pf_vec3 pf_pm_irradiance_cone(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int k, float max_r2, float hint_r2,
+                              pf_pm_scratch_t *scratch, float *r2_out)
+{
+    return pf_pm_estimate(map, x, n, k, max_r2, hint_r2, 1.0f, 1, scratch, r2_out);
+}
+
+pf_vec3 pf_pm_estimate(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int k, float max_r2, float hint_r2,
+                       float shrink2, int cone, pf_pm_scratch_t *scratch, float *r2_out)
+{
+    float r2 = max_r2;
+    size_t cnt = s_gather(map, x, k, max_r2, hint_r2, scratch, &r2);
+    if (r2_out)
+        *r2_out = r2;
+    return s_estimate(map, scratch, cnt, n, r2, shrink2, cone);
+}
+
+float pf_pass_shrink2(int pass)
+{
+    double s = 1.0;
+    for (int i = 1; i <= pass && i < PF_MAX_PASSES; i++)
+        s *= ((double)i + PF_PASS_ALPHA) / ((double)i + 1.0);
+    return (float)s;
+}
+
 pf_vec3 pf_pm_radiance(const pf_kdtree_t *map, const struct pf_material *m, pf_vec3 x, pf_vec3 n, pf_vec3 wo, int k,
-                       float max_r2, pf_pm_scratch_t *scratch)
+                       float max_r2, float shrink2, pf_pm_scratch_t *scratch)
 {
     float r2 = 0.0f;
     size_t cnt = s_gather(map, x, k, max_r2, INFINITY, scratch, &r2);
     if (cnt == 0 || !(r2 > 0.0f))
         return pf_v3s(0.0f);
+    if (shrink2 < 1.0f)
+        r2 *= shrink2;
     const pf_photon_t *ph = pf_kdtree_photons(map);
     double s[3] = { 0, 0, 0 };
     for (size_t i = 0; i < cnt; i++) {
         const pf_photon_t *p = &ph[scratch->found[i].index];
-        if (!pf_photon_normal_agrees(p, n, PF_NORMAL_AGREE))
+        if (!pf_photon_normal_agrees(p, n, PF_NORMAL_AGREE) || (shrink2 < 1.0f && !(scratch->found[i].d2 < r2)))
             continue;
         pf_vec3 wi = pf_neg(pf_oct_decode(p->dir));
         pf_vec3 f = pf_brdf_eval(m, n, wi, wo);

@@ -130,12 +130,34 @@ pf_vec3 pf_irradiance_lookup(const pf_kdtree_t *irr, float irr_r2, const pf_acce
 pf_vec3 pf_pm_irradiance_cone(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int k, float max_r2, float hint_r2,
                               pf_pm_scratch_t *scratch, float *r2_out);
 
+/* Progressive passes (Knaus and Zwicker 2011, "Progressive photon mapping:
+ * a probabilistic approach"): pass i's estimates average over a disc whose
+ * squared radius is pf_pass_shrink2(i) times the k-nearest one, the product
+ * of (j + alpha) / (j + 1) for j = 1..i. Each pass's photons are
+ * independent; the mean of the passes then converges to the right answer,
+ * bias (the blur, ~ r^2) and noise (~ 1 / (i r^2) per pass) both going to
+ * zero, for 0 < alpha < 1; 2/3 balances them. The disc's photons are the
+ * k nearest (or all within max_r2) whatever the pass: with the photons of a
+ * k-nearest disc uniform in it, those within the shrunk disc estimate the
+ * same density (E[count] = (k - 1) shrink2), so a pass's expected estimate
+ * is the blur over the shrunk disc. Pass 0 is the unshrunk estimate. */
+#define PF_PASS_ALPHA (2.0 / 3.0)
+float pf_pass_shrink2(int pass);
+
+/* The estimates above, with the disc shrunk by shrink2 (<= 1; 1: none,
+ * the same bits as without) and a constant kernel (cone 0) or the cone
+ * filter (cone 1). *r2_out (unless NULL) gets the unshrunk squared radius,
+ * for hints. */
+pf_vec3 pf_pm_estimate(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int k, float max_r2, float hint_r2,
+                       float shrink2, int cone, pf_pm_scratch_t *scratch, float *r2_out);
+
 /* Reflected radiance towards wo at x for a DIFFUSE material with a Phong
  * lobe, from the photons' directions (Jensen's original estimate): sum of
- * f(wi_p, wo) flux_p / (pi r^2). Used where precomputed irradiance cannot
- * represent the reflection (glossy surfaces). */
+ * f(wi_p, wo) flux_p / (pi r^2), over the disc shrunk by shrink2 (as
+ * pf_pm_estimate). Used where precomputed irradiance cannot represent the
+ * reflection (glossy surfaces). */
 struct pf_material;
 pf_vec3 pf_pm_radiance(const pf_kdtree_t *map, const struct pf_material *m, pf_vec3 x, pf_vec3 n, pf_vec3 wo, int k,
-                       float max_r2, pf_pm_scratch_t *scratch);
+                       float max_r2, float shrink2, pf_pm_scratch_t *scratch);
 
 #endif

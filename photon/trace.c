@@ -294,8 +294,8 @@ int pf_photon_pass(const pf_scene_t *scene, const pf_accel_t *accel, const pf_li
         rc = maps->irradiance ? PF_OK : PF_ENOMEM;
     } else {
         size_t stride = pf_irradiance_points_stride(gn, settings);
-        rc = pf_irradiance_precompute(maps->global, (int)stride, settings->global_k, maps->global_r2, accel, threads,
-                                      &maps->irradiance);
+        rc = pf_irradiance_precompute(maps->global, (int)stride, settings->global_k, maps->global_r2,
+                                      pf_pass_shrink2(settings->pass), accel, threads, &maps->irradiance);
     }
     stats->irradiance_s = pf_now() - t2;
     if (rc != PF_OK) {

@@ -149,7 +149,7 @@ int pf_fingerprint_check(const pf_fingerprint_t *worker, const pf_fingerprint_t 
 
 /* ---- the settings field group ----
  *
- * On the wire, in this order (the declaration order of pf_settings_t), 84
+ * On the wire, in this order (the declaration order of pf_settings_t), 88
  * bytes; int fields travel as two's-complement i32:
  *   i32 width, i32 height, i32 spp,
  *   u64 photons, u64 caustic_photons,
@@ -157,7 +157,7 @@ int pf_fingerprint_check(const pf_fingerprint_t *worker, const pf_fingerprint_t 
  *   i32 global_k, i32 caustic_k,
  *   f32 caustic_radius, f32 global_radius,
  *   i32 irradiance_stride, i32 threads,
- *   u64 seed, f32 exposure
+ *   u64 seed, f32 exposure, i32 pass
  */
 
 static uint32_t s_u32_from_int(int v) { return (uint32_t)(int32_t)v; }
@@ -192,6 +192,7 @@ int pf_wr_settings(pf_buf_t *b, const pf_settings_t *s)
     W(pf_wr_u32(b, s_u32_from_int(s->threads)));
     W(pf_wr_u64(b, s->seed));
     W(pf_wr_f32(b, s->exposure));
+    W(pf_wr_u32(b, s_u32_from_int(s->pass)));
     return rc;
 }
 
@@ -293,6 +294,7 @@ static void s_dec_settings(s_dec_t *d, pf_settings_t *s)
     s->threads = s_i32(d, "settings.threads");
     s->seed = s_u64(d, "settings.seed");
     s->exposure = s_f32(d, "settings.exposure");
+    s->pass = s_i32(d, "settings.pass");
 }
 
 void pf_rd_settings(pf_rd_t *r, pf_settings_t *s)
@@ -335,7 +337,8 @@ int pf_settings_check(const pf_settings_t *s, char *why, size_t why_len)
         s_bad_radius(why, why_len, "settings.caustic_radius", s->caustic_radius) ||
         s_bad_radius(why, why_len, "settings.global_radius", s->global_radius) ||
         s_out_of_range(why, why_len, "settings.irradiance_stride", s->irradiance_stride, 1, INT32_MAX) ||
-        s_out_of_range(why, why_len, "settings.threads", s->threads, 0, INT32_MAX))
+        s_out_of_range(why, why_len, "settings.threads", s->threads, 0, INT32_MAX) ||
+        s_out_of_range(why, why_len, "settings.pass", s->pass, 0, PF_MAX_PASSES - 1))
         return PF_EINVAL;
     if (!isfinite(s->exposure)) {
         s_whyf(why, why_len, "settings.exposure %g is not finite", (double)s->exposure);

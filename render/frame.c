@@ -76,6 +76,12 @@ void pf_frame_ready(pf_frame_t *f)
     }
 }
 
+void pf_frame_drop_maps(pf_frame_t *f)
+{
+    pf_irrtex_destroy(&f->texels);
+    pf_photon_maps_free(&f->maps);
+}
+
 void pf_frame_close(pf_frame_t *f)
 {
     if (!f)

@@ -59,6 +59,11 @@ int pf_frame_from_blobs(pf_frame_t *f, const uint8_t *scene_blob, size_t scene_l
  * the log. Call once, after the maps are in place. */
 void pf_frame_ready(pf_frame_t *f);
 
+/* Frees the maps and their texels, for the next progressive pass's photon
+ * pass to fill (then pf_frame_ready again); the scene, accel and lights
+ * stay. */
+void pf_frame_drop_maps(pf_frame_t *f);
+
 /* Frees what the frame owns (maps, texels, lights, accel, an owned scene);
  * NULL-safe; leaves it zeroed. */
 void pf_frame_close(pf_frame_t *f);

@@ -148,14 +148,14 @@ static pf_vec3 s_caustic(s_state *st, pf_vec3 p, pf_vec3 nf)
         return st->caustic_e;
     const pf_render_ctx_t *c = st->ctx;
     float r2 = 0.0f;
-    pf_vec3 e = pf_pm_irradiance_cone(c->maps->caustic, p, nf, c->settings.caustic_k, c->maps->caustic_r2,
-                                      st->caustic_hint, &st->scratch, &r2);
+    pf_vec3 e = pf_pm_estimate(c->maps->caustic, p, nf, c->settings.caustic_k, c->maps->caustic_r2,
+                               st->caustic_hint, c->shrink2, 1, &st->scratch, &r2);
     st->caustic_hint = r2 < c->maps->caustic_r2 ? fminf(2.25f * r2, c->maps->caustic_r2) : c->maps->caustic_r2;
     st->caustic_valid = 1;
     st->caustic_p = p;
     st->caustic_n = nf;
     st->caustic_e = e;
-    st->caustic_reach2 = S_CAUSTIC_REUSE * S_CAUSTIC_REUSE * r2;
+    st->caustic_reach2 = S_CAUSTIC_REUSE * S_CAUSTIC_REUSE * (c->shrink2 < 1.0f ? c->shrink2 * r2 : r2);
     return e;
 }
 
@@ -238,7 +238,7 @@ static void s_gather_trace(s_state *st, pf_ray_t ray, s_gather_end *end)
                 return;
             if (pf_mat_glossy(m)) {
                 pf_vec3 l = pf_pm_radiance(c->maps->global, m, h.p, nf, wo, c->settings.global_k,
-                                           c->maps->global_r2, &st->scratch);
+                                           c->maps->global_r2, c->shrink2, &st->scratch);
                 end->value = pf_mul(thr, l);
                 return;
             }
@@ -578,6 +578,7 @@ void pf_render_ctx_init(pf_render_ctx_t *ctx, const pf_frame_t *frame, const pf_
     ctx->settings = *settings;
     ctx->camera = pf_camera_make(&frame->scene->camera, settings->width, settings->height);
     ctx->terms = PF_TERM_ALL;
+    ctx->shrink2 = pf_pass_shrink2(settings->pass);
 }
 
 /* Filtering the first gather.

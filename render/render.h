@@ -44,6 +44,9 @@ typedef struct pf_render_ctx {
      * image (bit for bit with one gather ray per sample), slower. For tests
      * and benchmarks; pf_render_ctx_init leaves it 0. */
     int reads_at_once;
+    /* The photon estimates' disc shrink of this progressive pass
+     * (pf_pass_shrink2(settings.pass); 1 for pass 0). */
+    float shrink2;
 } pf_render_ctx_t;
 
 /* The sum of final-gather rays' radiances, each exactly as the integrator

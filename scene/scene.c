@@ -11,6 +11,17 @@
 #include "base/log.h"
 #include "base/reserve.h"
 
+uint64_t pf_pass_seed(uint64_t seed, int pass)
+{
+    if (pass <= 0)
+        return seed;
+    /* splitmix64's finalizer over seed and pass: a different stream per pass */
+    uint64_t z = seed ^ (0x9e3779b97f4a7c15ULL * (uint64_t)(pass + 1));
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+    return z ^ (z >> 31);
+}
+
 pf_settings_t pf_settings_default(void)
 {
     return (pf_settings_t){

@@ -87,6 +87,8 @@ typedef struct pf_camera_desc {
 
 /* The largest settings.gather_filter: a (2n+1)^2 window of pixels. */
 #define PF_MAX_GATHER_FILTER 8
+/* Progressive passes one render may have (settings.pass < PF_MAX_PASSES). */
+#define PF_MAX_PASSES (1 << 20)
 
 /* Render settings: defaults from pf_settings_default(), then the scene file's
  * "render" block, then the command line. */
@@ -108,9 +110,21 @@ typedef struct pf_settings {
     int threads;               /* 0: all cores */
     uint64_t seed;
     float exposure;            /* stops, for the PNG only */
+    /* The progressive pass this is (0: the first, or the only one). A pass
+     * draws its own photons and camera samples (its seed is
+     * pf_pass_seed(seed, pass), set by whoever plans the passes) and its
+     * photon estimates average over a disc shrunk by pf_pass_shrink2(pass)
+     * (photon/photonmap.h). */
+    int pass;
 } pf_settings_t;
 
 pf_settings_t pf_settings_default(void);
+
+/* The seed of progressive pass `pass` of a render seeded `seed`: the seed
+ * itself for pass 0 (so a one-pass render is the render without passes), a
+ * hash of both for the others, so every pass draws independent photons and
+ * camera samples. */
+uint64_t pf_pass_seed(uint64_t seed, int pass);
 
 typedef struct pf_scene {
     char path[1024];          /* the file it was loaded from */

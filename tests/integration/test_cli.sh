@@ -173,6 +173,8 @@ pfm_clean() {
     set -- $s
     [ "$3" = 0 ] && python3 -c "import sys; sys.exit(not float(sys.argv[1]) > 0)" "$4"
 }
+# differ A B: the files A and B differ.
+differ() { ! cmp -s "$1" "$2"; }
 pfm_mean() {
     local s
     s=$(python3 "$T/img.py" pfm "$1") || return 1
@@ -426,20 +428,45 @@ timed_run() {
 # for starting the process and loading the scene (the planner counts from
 # its own start).
 within() { awk -v w="$wall" -v l="$1" 'BEGIN { exit !(w <= l + 0.5) }'; }
+# uses_most LIMIT: the last run's wall time is at least 80 % of LIMIT (the
+# passes go on until the deadline; a planner that stops early fails).
+uses_most() { awk -v w="$wall" -v l="$1" 'BEGIN { exit !(w >= 0.8 * l) }'; }
 
 timed_run render "$SCENES/cornell-spheres/scene.json" --size 128x128 --time-limit 4 -o "$T/tl.png" --hdr "$T/tl.pfm"
 check "--time-limit 4 renders (exit 0)" rc_is 0
 check "--time-limit 4 finishes within 4 s (took $wall s)" within 4
+check "--time-limit 4 uses most of its 4 s (took $wall s)" uses_most 4
 check "--time-limit logs the plan it made" err_has "time limit 4 s:"
+check "--time-limit logs each pass" err_has "pass 2: "
 check "--time-limit gives a clean, non-black PFM" pfm_clean "$T/tl.pfm"
-spp=$(sed -n 's/.*caustic photons, \([0-9]*\) spp x.*/\1/p' "$T/err" | head -1)
-check "--time-limit 4 at 128x128 affords several samples per pixel (chose ${spp:-none})" test "${spp:-0}" -ge 4
+spp=$(sed -n 's/.*passes: [0-9]* whole.*, \([0-9]*\) samples per pixel.*/\1/p' "$T/err" | head -1)
+check "--time-limit 4 at 128x128 affords several samples per pixel over its passes (${spp:-none})" test "${spp:-0}" -ge 4
 run render "$SCENES/cornell-spheres/scene.json" --size 64x64 --time-limit 3 --spp 2 -o "$T/tl2.png"
 check "--time-limit keeps a given --spp" err_has "caustic photons, 2 spp x"
 timed_run render "$SCENES/cornell-box/scene.json" --size 96x96 --time-limit 6 --workers 2 -o "$T/tlf.png" --hdr "$T/tlf.pfm"
 check "--time-limit 6 with two workers renders (exit 0)" rc_is 0
 check "--time-limit 6 with two workers finishes within 6 s (took $wall s)" within 6
+check "--time-limit 6 with two workers uses most of its 6 s (took $wall s)" uses_most 6
 check "the farm's image under a time limit is clean" pfm_clean "$T/tlf.pfm"
+check "the farm renders passes under a time limit" err_has "pass 2: "
+
+# --passes: pass 0 is the one-pass render, bit for bit; more passes differ
+# from it; threads do not change the image.
+PS=(render "$SCENES/cornell-spheres/scene.json" --size 48x48 --spp 4 --photons 20000 --caustic-photons 20000)
+run "${PS[@]}" -o "$T/p0.png" --hdr "$T/p0.pfm"
+run "${PS[@]}" --passes 1 -o "$T/p1.png" --hdr "$T/p1.pfm"
+check "--passes 1 renders the image without --passes, bit for bit" cmp -s "$T/p0.pfm" "$T/p1.pfm"
+run "${PS[@]}" --passes 3 --threads 2 -o "$T/p3.png" --hdr "$T/p3.pfm"
+check "--passes 3 renders (exit 0)" rc_is 0
+check "--passes 3 logs three passes" err_has "pass 3: 4 spp"
+check "--passes 3 sums 12 samples per pixel" err_has "passes: 3 whole, 12 samples per pixel"
+check "--passes 3 is another image than one pass" differ "$T/p0.pfm" "$T/p3.pfm"
+run "${PS[@]}" --passes 3 --threads 1 -o "$T/p3b.png" --hdr "$T/p3b.pfm"
+check "--passes 3 gives the same bits on 1 and 2 threads" cmp -s "$T/p3.pfm" "$T/p3b.pfm"
+for v in 0 -1 abc; do
+    run "${PS[@]}" --passes "$v" -o "$T/x.png"
+    check "--passes $v exits 2" rc_is 2
+done
 for v in 0 -1 abc 1e9; do
     run render "$SCENES/cornell-box/scene.json" --time-limit "$v" -o "$T/x.png"
     check "--time-limit $v exits 2" rc_is 2
@@ -480,6 +507,22 @@ check "... and writes no image" test ! -e "$T/sig.png"
 sig_run TERM 2 "${SLOW[@]}" --workers 1
 check "SIGTERM during a farm render exits 143" rc_is 143
 check "... and says it was interrupted" err_has "interrupted"
+# Progressive passes stop at the next tile and write the passes done.
+PROG=(render "$SCENES/cornell-spheres/scene.json" --size 96x96 --time-limit 600 --threads 2 -o "$T/sigp.png" --hdr "$T/sigp.pfm")
+t0=$(date +%s.%N)
+sig_run INT 4 "${PROG[@]}"
+wall=$(awk -v a="$t0" -v b="$(date +%s.%N)" 'BEGIN { printf "%.2f", b - a - 4 }')
+check "SIGINT during progressive passes exits 130" rc_is 130
+check "... within 2 s of the signal (took $wall s)" within 1.5
+check "... and writes the image of the passes done" pfm_clean "$T/sigp.pfm"
+check "... and says so" err_has "(interrupted)"
+rm -f "$T/sigp.pfm"
+t0=$(date +%s.%N)
+sig_run TERM 5 "${PROG[@]}" --workers 2 --threads 1
+wall=$(awk -v a="$t0" -v b="$(date +%s.%N)" 'BEGIN { printf "%.2f", b - a - 5 }')
+check "SIGTERM during a farm's progressive passes exits 143" rc_is 143
+check "... within 2 s of the signal (took $wall s)" within 1.5
+check "... and writes the image of the passes done" pfm_clean "$T/sigp.pfm"
 
 if [ "$known" -gt 0 ]; then
     echo "($known known bugs reported above do not count as failures)"

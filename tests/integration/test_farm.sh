@@ -27,7 +27,9 @@
 #  7. CURVE: a listed key renders; an unlisted key and a plain worker never join;
 #  8. SIGINT to a coordinator with local workers: exit 130, no process left;
 #  9. --exit-on-bye workers leave at the end of the job; a long-lived worker
-#     serves a second coordinator on the same port.
+#     serves a second coordinator on the same port;
+# 10. progressive passes (--passes 4): two cluster workers, one killed -9
+#     in the second pass; the image is the in-process one's, bit for bit.
 #
 # Every wait is bounded (poll loops with deadlines, `timeout`), every process
 # the script starts is recorded and killed (kill -9) on exit, and workers carry
@@ -166,6 +168,8 @@ SMALL=(--size 96x96 --spp 4 --photons 50000 --caustic-photons 50000 --gather 8)
 # Long enough (several seconds on two one-thread workers) that a worker can
 # be killed, stopped or added while tiles are in flight.
 BIG=(--size 192x192 --spp 25 --photons 50000 --caustic-photons 50000 --gather 8)
+# Four progressive passes of a few seconds in all.
+PROG=(--size 128x128 --spp 6 --photons 30000 --caustic-photons 30000 --gather 4 --passes 4)
 FARM=(--tile 16 --heartbeat-ms 200)
 
 # coordinator NAME SCENE PORT SETTINGS_VAR [extra options...]: starts a cluster
@@ -222,7 +226,7 @@ completed() {
 references() {
     echo "# references: in-process renders (--workers 0)"
     local r rname rscene rset
-    for r in spheres:$SPHERES:SMALL box:$BOX:SMALL big:$SPHERES:BIG; do
+    for r in spheres:$SPHERES:SMALL box:$BOX:SMALL big:$SPHERES:BIG prog:$SPHERES:PROG; do
         IFS=: read -r rname rscene rset <<<"$r"
         local -n rs=$rset
         if ! timeout 120 "$PF" render "$rscene" -o "$T/ref_$rname.png" --hdr "$T/ref_$rname.pfm" "${rs[@]}" \
@@ -583,11 +587,40 @@ t9() {
     stop "$wlong"
 }
 
+# ---- 10. progressive passes -------------------------------------------------------
+
+t10() {
+    echo "# 10. progressive passes, a worker killed in the second"
+    local port coord wa wb
+    port=$(free_port)
+    coordinator prog_coord "$SPHERES" "$port" PROG --min-workers 2
+    coord=$LASTPID
+    worker prog_a "$port" --exit-on-bye
+    wa=$LASTPID
+    worker prog_b "$port" --exit-on-bye
+    wb=$LASTPID
+    if wait_log "$T/prog_coord.err" 'pass 1: ' 60 && kill -0 "$coord" 2>/dev/null; then
+        sleep 0.5
+        kill -9 "$wb"
+        wait "$wb" 2>/dev/null
+        ok "10: worker prog_b killed after the first pass"
+    else
+        bad "10: the first pass did not end while the render ran"
+    fi
+    wait_exit "$coord" 90
+    if completed "10: four passes complete after kill -9 of a worker" "$T/prog_coord.err"; then
+        check "10: the image of four passes is bit-identical to in-process" same "$T/prog_coord.pfm" "$T/ref_prog.pfm"
+        check "10: the log has the fourth pass" logged "$T/prog_coord.err" "pass 4: 6 spp"
+        summary_note 10 "$T/prog_coord.err"
+    fi
+    stop "$wa" "$wb"
+}
+
 # ---- run ----------------------------------------------------------------------------
 
 if references; then
     # PF_FARM_ONLY="2 5" runs only those tests (for debugging).
-    for n in ${PF_FARM_ONLY:-1 2 3 4 5 6 7 8 9}; do
+    for n in ${PF_FARM_ONLY:-1 2 3 4 5 6 7 8 9 10}; do
         "t$n"
     done
 fi

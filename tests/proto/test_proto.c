@@ -351,7 +351,7 @@ static void test_settings_group(void)
     s.seed = 0x8000000000000001ULL;
     s.threads = 3;
     pf_buf_t b = { 0 };
-    CHECK(pf_wr_settings(&b, &s) == 0 && b.len == 84, "settings group is 84 bytes (got %zu)", b.len);
+    CHECK(pf_wr_settings(&b, &s) == 0 && b.len == 88, "settings group is 88 bytes (got %zu)", b.len);
     pf_rd_t r = pf_rd_make(b.data, b.len);
     pf_settings_t t;
     memset(&t, 0xee, sizeof t);
@@ -590,8 +590,8 @@ static void s_corrupt_handshake(void)
 /* JOB: the settings' ranges and non-finite floats, terms, the tile size. */
 static void s_corrupt_job(void)
 {
-    /* JOB: four u64 then the settings at 48 (layout in messages.c), terms at
-     * 132, tile_size at 136. */
+    /* JOB: four u64 then the settings at 48 (layout in messages.c), pass at
+     * 132, terms at 136, tile_size at 140. */
     const s_patch_t job[] = {
         { 48, 4, 0, "settings.width 0", 0 },
         { 48, 4, 65537, "settings.width", 0 },
@@ -615,10 +615,12 @@ static void s_corrupt_job(void)
         { 112, 4, 0, "settings.irradiance_stride", 0 },
         { 116, 4, 0xffffffffu, "settings.threads", 0 },
         { 128, 4, 0xff800000u, "settings.exposure", 0 },
-        { 132, 4, 0, "terms 0", 0 },
-        { 132, 4, 32, "terms 32", 0 },
-        { 136, 4, 0, "tile_size 0", 0 },
-        { 136, 4, 257, "tile_size", 0 },
+        { 132, 4, 0xffffffffu, "settings.pass -1", 0 },
+        { 132, 4, PF_MAX_PASSES, "settings.pass", 0 },
+        { 136, 4, 0, "terms 0", 0 },
+        { 136, 4, 32, "terms 32", 0 },
+        { 140, 4, 0, "tile_size 0", 0 },
+        { 140, 4, 257, "tile_size", 0 },
     };
     s_patch_test(PF_MSG_JOB, job, NPATCH(job));
 }
@@ -867,7 +869,7 @@ static void test_fingerprint(void)
     snprintf(vwant, sizeof vwant, "version %u (worker) vs 9 (coordinator)", (unsigned)PF_MAPFILE_VERSION);
     CHECK(pf_fingerprint_check(&self, &w, why, sizeof why) == PF_EMISMATCH && strstr(why, vwant),
           "reversed: '%s'", why);
-    w.protocol = 3;
+    w.protocol = PF_PROTO_VERSION + 1;
     w.photon_size = 16;
     CHECK(pf_fingerprint_check(&w, &self, why, sizeof why) == PF_EMISMATCH && strstr(why, "protocol") &&
               strstr(why, "photon record") && strstr(why, "photon-map"),

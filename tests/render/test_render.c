@@ -303,7 +303,7 @@ static void s_test_point_stride(void)
     long n[3];
     for (int i = 0; i < 3; i++) {
         pf_kdtree_t *irr = NULL;
-        PF_CHECK(pf_irradiance_precompute(f.maps->global, strides[i], k, f.maps->global_r2, f.accel, 2, &irr) == PF_OK);
+        PF_CHECK(pf_irradiance_precompute(f.maps->global, strides[i], k, f.maps->global_r2, 1.0f, f.accel, 2, &irr) == PF_OK);
         mean[i] = s_mean_lookup(&f, irr, &n[i]);
         printf("cornell-box, %zu global photons, k %d, stride %d: %zu irradiance points, mean lookup %.5f over %ld\n",
                pf_kdtree_size(f.maps->global), k, strides[i], pf_kdtree_size(irr), mean[i], n[i]);

@@ -1,0 +1,128 @@
+/* farm_pass.c: progressive passes on the farm (job.h has the scheme): each
+ * pass is a job of its own (job id job0 + pass, its own maps blob; the
+ * scene blob's content, and so its hash, is the same, so a worker fetches
+ * it once) rendered into f->img, then added to the running mean (accum.h).
+ * The next pass's photons are traced once this one's tiles are all in; a
+ * pass cut short by the deadline or a signal adds the tiles it finished.
+ * Results of an earlier pass carry its job id and are dropped as stale.
+ * Called from the event loop's thread. */
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "base/log.h"
+#include "coordinator/farm.h"
+#include "coordinator/farm_impl.h"
+#include "photon/photonmap.h"
+
+int pf_fm_progressive(const pf_fm_t *f) { return f->o->budget != NULL || f->o->passes > 1; }
+
+/* Adds the done tiles of the current pass from f->img. Returns how many. */
+static int s_add_done(pf_fm_t *f)
+{
+    int n = 0;
+    uint32_t spp = (uint32_t)f->ph.settings.spp;
+    for (int i = 0; i < f->L.nt; i++) {
+        const pf_tile_t *t = &f->L.t[i];
+        if (t->state != PF_T_DONE)
+            continue;
+        const float *px = &f->img->rgb[3 * ((size_t)t->y0 * (size_t)f->img->width + t->x0)];
+        pf_accum_add(&f->acc, (int)t->x0, (int)t->y0, (int)t->w, (int)t->h, px, 3 * (size_t)f->img->width, spp);
+        n++;
+    }
+    return n;
+}
+
+static void s_pass_log(pf_fm_t *f, int done)
+{
+    pf_farm_summary_t *sum = f->sum;
+    const pf_settings_t *s = &f->ph.settings;
+    char left[48] = "", err[48] = "";
+    if (f->o->budget)
+        snprintf(left, sizeof left, ", %.1f s left", pf_budget_left(f->o->budget));
+    if (isfinite(sum->error_est))
+        snprintf(err, sizeof err, ", est. relMSE %.2g", sum->error_est);
+    pf_info("pass %d: %d spp, %llu photons (%llu so far), radius x%.3f, tiles %.2f s%s%s%s", s->pass + 1, s->spp,
+            (unsigned long long)(s->photons + s->caustic_photons), (unsigned long long)sum->photons_total,
+            sqrt((double)pf_pass_shrink2(s->pass)), pf_now() - f->pass_start,
+            done < f->L.nt ? " (cut short)" : "", err, left);
+}
+
+void pf_fm_pass_whole(pf_fm_t *f)
+{
+    pf_farm_summary_t *sum = f->sum;
+    s_add_done(f);
+    sum->passes++;
+    sum->passes_whole++;
+    sum->spp_total += (uint64_t)f->ph.settings.spp;
+    sum->error_est = pf_accum_error(&f->acc);
+    if (f->o->budget)
+        pf_budget_pass_done(f->o->budget, f->ph.settings.spp, pf_now() - f->pass_start);
+    s_pass_log(f, f->L.nt);
+}
+
+void pf_fm_pass_cut(pf_fm_t *f)
+{
+    pf_farm_summary_t *sum = f->sum;
+    int n = s_add_done(f);
+    sum->passes++;
+    sum->cut_tiles = n;
+    sum->cut_total = f->L.nt;
+    sum->error_est = pf_accum_error(&f->acc);
+    s_pass_log(f, n);
+}
+
+int pf_fm_pass_more(const pf_fm_t *f, volatile int *stop)
+{
+    if (stop && *stop)
+        return 0;
+    int next = f->ph.pass + 1;
+    if (f->o->passes > 0 && next >= f->o->passes)
+        return 0;
+    if (next >= PF_MAX_PASSES)
+        return 0;
+    return f->o->budget ? pf_now() < pf_budget_tiles_deadline(f->o->budget) : 1;
+}
+
+int pf_fm_pass_reset(pf_fm_t *f, pf_error_t *err)
+{
+    f->sum->reissued += f->L.reissued;
+    f->sum->duplicates += f->L.duplicates;
+    pf_leases_t old = f->L;
+    pf_fm_verify_free(f);
+    if (pf_leases_init(&f->L, f->img->width, f->img->height, f->ts) != PF_OK || pf_fm_verify_init(f) != PF_OK) {
+        pf_leases_free(&old);
+        return pf_error_set(err, PF_ENOMEM, NULL, 0, "out of memory");
+    }
+    /* The typical tile time carries over (the stall and takeover clocks). */
+    memcpy(f->L.times, old.times, sizeof old.times);
+    f->L.ntimes = old.ntimes;
+    f->L.itime = old.itime;
+    pf_leases_free(&old);
+    double now = pf_now();
+    for (int i = 0; i < f->reg.nw; i++) {
+        pf_worker_t *w = &f->reg.w[i];
+        if (w->state == PF_W_JOB_SENT || w->state == PF_W_READY)
+            w->state = PF_W_HELLO; /* the next pass's JOB goes out once its maps are ready */
+        w->held = 0;
+        w->asked = 0;
+        w->stuck = 0;
+        w->blob_sent = 0;
+        w->result_at = now;
+        if (w->state == PF_W_HELLO && pf_xfer_reset(f->xfer, i) != PF_OK)
+            return pf_error_set(err, PF_ENOMEM, NULL, 0, "out of memory");
+    }
+    f->job_ready = 0;
+    f->frame_readied = 0;
+    f->ph.pass++;
+    f->job = f->job0 + (uint64_t)f->ph.pass;
+    if (f->job == 0)
+        f->job = 1;
+    f->ph.job = f->job;
+    return PF_OK;
+}
+
+void pf_fm_pass_resolve(pf_fm_t *f)
+{
+    f->sum->unreached = pf_accum_resolve(&f->acc, f->img);
+}
