@@ -241,7 +241,7 @@ static int s_material(s_ctx_t *c, const cJSON *m)
         mat.type = PF_MAT_DIFFUSE;
         valid = diffuse_keys;
     } else if (strcmp(type, "mirror") == 0) {
-        /* A mirror or glass written without "ks" should reflect, so their
+        /* A mirror or glass (solid or thin) written without "ks" should reflect, so their
          * defaults differ from the grey Lambertian's. */
         mat.type = PF_MAT_MIRROR;
         mat.kd = pf_v3s(0.0f);
@@ -252,12 +252,18 @@ static int s_material(s_ctx_t *c, const cJSON *m)
         mat.kd = pf_v3s(0.0f);
         mat.ks = pf_v3s(1.0f);
         valid = glass_keys;
+    } else if (strcmp(type, "thindielectric") == 0) {
+        mat.type = PF_MAT_THIN_DIELECTRIC;
+        mat.kd = pf_v3s(0.0f);
+        mat.ks = pf_v3s(1.0f);
+        valid = glass_keys;
     } else if (strcmp(type, "conductor") == 0) {
         mat.type = PF_MAT_CONDUCTOR;
         mat.kd = pf_v3s(0.0f);
         valid = conductor_keys;
     } else {
-        return S_FAIL_AT(c, vtype, "unknown material type '%.64s' (expected diffuse, mirror, glass or conductor)",
+        return S_FAIL_AT(c, vtype,
+                         "unknown material type '%.64s' (expected diffuse, mirror, glass, thindielectric or conductor)",
                          type);
     }
     for (const cJSON *k = m->child; k; k = k->next) {

@@ -33,6 +33,7 @@
 #include "base/reserve.h"
 #include "base/rng.h"
 #include "material/bsdf.h"
+#include "material/dielectric.h"
 #include "material/ggx.h"
 #include "photon/irradiance.h"
 
@@ -152,15 +153,13 @@ static int s_trace(const s_ctx *c, uint64_t seed, uint64_t index, uint64_t emitt
             if (!s_conductor(m, nf, ns, wi, u0, u1, u2, &wo, &power))
                 return 0;
         } else {
-            int entering = pf_dot(ray.d, hit.ng) < 0.0f;
-            float eta_i = entering ? 1.0f : m->ior, eta_t = entering ? m->ior : 1.0f;
-            float f = pf_fresnel_dielectric(pf_dot(wi, ns), eta_i, eta_t);
-            if (u0 < f || !pf_refract(wi, ns, eta_i / eta_t, &wo)) {
-                wo = pf_reflect(wi, ns);
-                power = pf_mul(power, m->ks);
-            } else {
-                power = pf_mul(power, m->kt);
-            }
+            /* Glass, solid or thin: reflected with probability f (Fresnel R,
+             * or a thin sheet's R'), else transmitted; power is conserved
+             * across the interface, so kt is not scaled by the indices. */
+            pf_dielectric_t g = pf_dielectric_at(m, ray.d, hit.ng, wi, ns);
+            int reflect = u0 < g.f || !g.can_refract;
+            wo = reflect ? g.wr : g.wt;
+            power = pf_mul(power, reflect ? m->ks : m->kt);
         }
         if (!pf_is_finite3(power) || power.x < 0.0f || power.y < 0.0f || power.z < 0.0f)
             return 1;

@@ -9,7 +9,8 @@
  *   u8 has_camera, vec3 pos, vec3 look_at, vec3 up, f32 vfov_deg,
  *     u8 fov_shorter, u8 left_handed, f32 lens_radius, f32 focal_distance
  *   u32 nmats,    nmats x   { str name, u8 type, vec3 kd, vec3 ks, f32 ns, vec3 kt, f32 ior, vec3 le,
- *                             vec3 eta, vec3 k, f32 alpha }   (version 4: eta, k, alpha)
+ *                             vec3 eta, vec3 k, f32 alpha }   (version 4: eta, k, alpha;
+ *                             version 5: type 4, the thin dielectric)
  *   u32 nmeshes,  nmeshes x { str name, u64 nverts, u64 ntris, u8 has_normals,
  *                             nverts x vec3 pos, (has_normals) nverts x vec3 nrm,
  *                             ntris x 3 u32 idx, ntris x u32 mat }
@@ -294,8 +295,8 @@ static void s_read_materials(s_in_t *in, pf_scene_t *scene)
         memset(&m, 0, sizeof m);
         s_str(in, what, "name", m.name, sizeof m.name);
         uint8_t type = s_u8(in, what, "type");
-        if (!in->status && type > PF_MAT_CONDUCTOR)
-            s_fail(in, PF_EPARSE, "%s type %u is not a material type (0..3)", what, (unsigned)type);
+        if (!in->status && type > PF_MAT_LAST)
+            s_fail(in, PF_EPARSE, "%s type %u is not a material type (0..%d)", what, (unsigned)type, PF_MAT_LAST);
         m.type = (pf_mat_type)type;
         m.kd = s_vec3(in, what, "kd");
         m.ks = s_vec3(in, what, "ks");

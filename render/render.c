@@ -20,7 +20,7 @@
  *                       irradiance_stride-th global photon)
  *
  * Path classes (Heckbert notation, read from the light L to the eye E; S is
- * a mirror, glass or smooth conductor bounce, C a rough conductor (GGX,
+ * a mirror, glass (solid or thin) or smooth conductor bounce, C a rough conductor (GGX,
  * alpha >= 1e-3), D a diffuse or glossy one, x the first vertex seen from the
  * eye that is not S; behind x, towards the light, C counts as S: gather rays
  * follow it by sampling its BSDF, and photons leave it for L (S|C)+ D):
@@ -76,6 +76,7 @@
 #include "base/log.h"
 #include "base/rng.h"
 #include "material/bsdf.h"
+#include "material/dielectric.h"
 #include "material/ggx.h"
 #include "photon/irrtex.h"
 
@@ -214,8 +215,9 @@ typedef struct s_gather_end {
     pf_vec3 nf, thr, kd;
 } s_gather_end;
 
-/* Traces a final-gather ray to its end: mirrors and glass on the way are
- * followed (one branch chosen by Fresnel); at the first non-specular surface
+/* Traces a final-gather ray to its end: mirrors and glass (solid or thin)
+ * on the way are followed (one branch chosen by Fresnel); at the first
+ * non-specular surface
  * the radiance it leaves towards the ray's origin, from the global map
  * (emission not counted). */
 static void s_gather_trace(s_state *st, pf_ray_t ray, s_gather_end *end)
@@ -261,17 +263,10 @@ static void s_gather_trace(s_state *st, pf_ray_t ray, s_gather_end *end)
                 return;
             thr = pf_mul(thr, w);
         } else {
-            int entering = pf_dot(ray.d, h.ng) < 0.0f;
-            float eta_i = entering ? 1.0f : m->ior, eta_t = entering ? m->ior : 1.0f;
-            float f = pf_fresnel_dielectric(pf_dot(wo, ns), eta_i, eta_t);
-            if (s_u(st) < f || !pf_refract(wo, ns, eta_i / eta_t, &wi)) {
-                wi = pf_reflect(wo, ns);
-                thr = pf_mul(thr, m->ks);
-            } else {
-                /* Radiance scales by (eta_i / eta_t)^2 across the interface, seen from the receiving side. */
-                float s = eta_i / eta_t;
-                thr = pf_mul(thr, pf_scale(m->kt, s * s));
-            }
+            pf_dielectric_t g = pf_dielectric_at(m, ray.d, h.ng, wo, ns);
+            int reflect = s_u(st) < g.f || !g.can_refract;
+            wi = reflect ? g.wr : g.wt;
+            thr = pf_mul(thr, reflect ? m->ks : g.kt);
         }
         if (pf_is_black(thr)) {
             end->value = thr;
@@ -371,32 +366,9 @@ static pf_vec3 s_first_gather(s_state *st, const pf_hit_t *h, pf_vec3 nf, pf_vec
     return pf_scale(sum, 1.0f / (float)st->ctx->settings.gather);
 }
 
-/* Glass paths of the camera split into both branches above this depth. */
+/* Glass paths (solid or thin, material/dielectric.h) of the camera split
+ * into both branches above this depth. */
 #define S_GLASS_SPLIT_DEPTH 2
-
-/* A glass interface met along direction d (geometric normal ng, wo = -d,
- * ns the shading normal on wo's side): its Fresnel reflectance, whether it
- * refracts, both directions and the transmission weight (kt scaled by the
- * radiance's (eta_i / eta_t)^2 across the interface). */
-typedef struct s_glass {
-    float f;
-    int can_refract;
-    pf_vec3 wr, wt, kt;
-} s_glass;
-
-static s_glass s_glass_at(const pf_material_t *m, pf_vec3 d, pf_vec3 ng, pf_vec3 wo, pf_vec3 ns)
-{
-    s_glass g;
-    int entering = pf_dot(d, ng) < 0.0f;
-    float eta_i = entering ? 1.0f : m->ior, eta_t = entering ? m->ior : 1.0f;
-    g.f = pf_fresnel_dielectric(pf_dot(wo, ns), eta_i, eta_t);
-    g.wt = pf_v3s(0.0f);
-    g.can_refract = g.f < 1.0f && pf_refract(wo, ns, eta_i / eta_t, &g.wt);
-    float s = eta_i / eta_t;
-    g.kt = pf_scale(m->kt, s * s);
-    g.wr = pf_reflect(wo, ns);
-    return g;
-}
 
 static pf_vec3 s_radiance(s_state *st, pf_ray_t ray, int depth, pf_vec3 thr, int count_le, int primary);
 
@@ -529,7 +501,7 @@ static pf_vec3 s_radiance(s_state *st, pf_ray_t ray, int depth, pf_vec3 thr, int
      * chosen by Fresnel deeper down. The refracted branch near the eye (or
      * the reflection alone under total internal reflection) goes on as the
      * primary path; s_primary_hit follows the same choice. */
-    s_glass g = s_glass_at(m, ray.d, h.ng, wo, ns);
+    pf_dielectric_t g = pf_dielectric_at(m, ray.d, h.ng, wo, ns);
     float f = g.f;
     pf_vec3 wt = g.wt, wr = g.wr, kt = g.kt;
     if (!g.can_refract)
@@ -684,8 +656,8 @@ static const pf_material_t *s_primary_hit(const pf_render_ctx_t *c, pf_ray_t ray
         if (pf_mat_rough(m))
             return NULL; /* a random branch from here on */
         pf_vec3 wi = pf_reflect(wo, *ns);
-        if (m->type == PF_MAT_GLASS) {
-            s_glass g = s_glass_at(m, ray.d, h->ng, wo, *ns);
+        if (pf_mat_dielectric(m)) {
+            pf_dielectric_t g = pf_dielectric_at(m, ray.d, h->ng, wo, *ns);
             if (g.can_refract && depth >= S_GLASS_SPLIT_DEPTH)
                 return NULL; /* a random branch from here on */
             if (g.can_refract)

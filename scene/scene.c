@@ -286,7 +286,7 @@ int pf_scene_finalize(pf_scene_t *self, pf_error_t *err)
         const pf_material_t *m = &self->mats[i];
         if (!s_mat_finite(m))
             return pf_error_set(err, PF_EPARSE, file, 0, "material '%s' has a non-finite value", m->name);
-        if (m->type == PF_MAT_GLASS && !(m->ior > 0.0f))
+        if ((m->type == PF_MAT_GLASS || m->type == PF_MAT_THIN_DIELECTRIC) && !(m->ior > 0.0f))
             return pf_error_set(err, PF_EPARSE, file, 0, "material '%s': index of refraction must be > 0", m->name);
         if (m->type == PF_MAT_CONDUCTOR && !(m->eta.x > 0.0f && m->eta.y > 0.0f && m->eta.z > 0.0f))
             return pf_error_set(err, PF_EPARSE, file, 0, "material '%s': conductor eta must be > 0", m->name);
@@ -295,7 +295,7 @@ int pf_scene_finalize(pf_scene_t *self, pf_error_t *err)
         if (m->type == PF_MAT_CONDUCTOR && !(m->alpha >= 0.0f && m->alpha <= 1.0f))
             return pf_error_set(err, PF_EPARSE, file, 0, "material '%s': conductor roughness must be in [0, 1]",
                                 m->name);
-        if (m->type > PF_MAT_CONDUCTOR)
+        if (m->type > PF_MAT_LAST)
             return pf_error_set(err, PF_EPARSE, file, 0, "material '%s': unknown type %d", m->name, (int)m->type);
     }
     size_t dropped = 0, ntris = 0;

@@ -12,14 +12,17 @@
 #include "base/status.h"
 #include "base/vec.h"
 
-/* Material kinds. Every kind may also emit (le), one-sided along the face
+/* Material kinds (the last is PF_MAT_LAST). Every kind may also emit (le), one-sided along the face
  * normal given by the triangle's counter-clockwise winding. */
 typedef enum {
     PF_MAT_DIFFUSE = 0, /* Lambertian kd, plus an optional energy-conserving Phong lobe ks/ns */
     PF_MAT_MIRROR = 1,  /* perfect specular reflection with reflectance ks */
     PF_MAT_GLASS = 2,   /* smooth dielectric: Fresnel reflection tinted ks, refraction tinted kt, index ior */
     PF_MAT_CONDUCTOR = 3, /* metal: GGX microfacets of roughness alpha (0: smooth), complex index eta + i k per channel */
+    PF_MAT_THIN_DIELECTRIC = 4, /* thin sheet of index ior (a window pane as one quad): reflects R' tinted ks,
+                                 * passes 1 - R' unbent tinted kt, alike from both sides (pbrt-v4 thindielectric) */
 } pf_mat_type;
+#define PF_MAT_LAST PF_MAT_THIN_DIELECTRIC
 
 #define PF_NAME_MAX 64
 
@@ -27,10 +30,10 @@ typedef struct pf_material {
     char name[PF_NAME_MAX];
     pf_mat_type type;
     pf_vec3 kd;  /* diffuse albedo (DIFFUSE) */
-    pf_vec3 ks;  /* Phong glossy albedo (DIFFUSE), reflectance (MIRROR), reflection tint (GLASS) */
+    pf_vec3 ks;  /* Phong glossy albedo (DIFFUSE), reflectance (MIRROR), reflection tint (GLASS, THIN_DIELECTRIC) */
     float ns;    /* Phong exponent (DIFFUSE with ks > 0) */
-    pf_vec3 kt;  /* transmission tint (GLASS) */
-    float ior;   /* index of refraction (GLASS) */
+    pf_vec3 kt;  /* transmission tint (GLASS, THIN_DIELECTRIC) */
+    float ior;   /* index of refraction (GLASS, THIN_DIELECTRIC) */
     pf_vec3 eta; /* real part of the complex index of refraction (CONDUCTOR), > 0 */
     pf_vec3 k;   /* imaginary part, the extinction coefficient (CONDUCTOR), >= 0 */
     float alpha; /* GGX roughness alpha in [0, 1] (CONDUCTOR); below 1e-3 a smooth mirror */

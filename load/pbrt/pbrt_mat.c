@@ -19,7 +19,7 @@
  *   coatedconductor     MIRROR of its conductor; warned
  *   dielectric          GLASS ior = eta (a named glass: its index); rough
  *                       ones warned
- *   thindielectric      GLASS, warned
+ *   thindielectric      THIN_DIELECTRIC ior = eta
  *   diffusetransmission DIFFUSE kd = reflectance, warned
  *   mix                 the first of its two materials, warned
  *   interface, none     no surface: its shapes are dropped, warned
@@ -335,12 +335,9 @@ static int s_dielectric(pf_pbrt_t *c, pf_pbrt_mat_t *m, const char *what, int th
         rc = s_alpha(c, &m->params, "", what, &alpha);
     if (rc)
         return rc;
-    m->m.type = PF_MAT_GLASS;
+    m->m.type = thin ? PF_MAT_THIN_DIELECTRIC : PF_MAT_GLASS;
     m->m.ks = m->m.kt = pf_v3s(1.0f);
     m->m.ior = (float)eta;
-    if (thin)
-        return pf_pbrt_warn(c, m->loc, "thindielectric (rendered as solid glass)",
-                            "%s: rendered as glass of index %g with refraction", what, eta);
     if (alpha >= 1e-3)
         return pf_pbrt_warn(c, m->loc, "rough dielectric (rendered as smooth glass until GGX lands)",
                             "%s: alpha %.3g; rendered as smooth glass of index %g", what, alpha, eta);

@@ -268,6 +268,7 @@ static void test_materials(void)
         "MakeNamedMaterial \"neg\" \"string type\" \"conductor\" \"rgb eta\" [0 0.5 0.5] \"rgb k\" [1 2 1]\n"
         "MakeNamedMaterial \"bk7\" \"string type\" \"dielectric\" \"spectrum eta\" \"glass-BK7\"\n"
         "MakeNamedMaterial \"water\" \"string type\" \"dielectric\" \"float eta\" 1.33\n"
+        "MakeNamedMaterial \"pane\" \"string type\" \"thindielectric\" \"float eta\" 1.52\n"
         "MakeNamedMaterial \"coat\" \"string type\" \"coateddiffuse\" \"rgb reflectance\" [1 1 1]\n"
         "Texture \"img\" \"spectrum\" \"imagemap\" \"string filename\" \"x.png\"\n"
         "Texture \"k\" \"spectrum\" \"constant\" \"rgb value\" [0.1 0.2 0.3]\n"
@@ -277,13 +278,13 @@ static void test_materials(void)
         "MakeNamedMaterial \"later\" \"string type\" \"diffuse\" \"float foo\" 1\n"
         "MakeNamedMaterial \"air\" \"string type\" \"interface\"\n" S_SHAPE("red") S_SHAPE("cu") S_SHAPE("au")
             S_SHAPE("refl") S_SHAPE("bk7") S_SHAPE("water") S_SHAPE("coat") S_SHAPE("tex") S_SHAPE("const")
-                S_SHAPE("mix") S_SHAPE("air") S_SHAPE("aniso") S_SHAPE("raw") S_SHAPE("neg") "Material \"diffuse\" \"rgb reflectance\" [0.25 0.25 0.25]\n" S_TRI,
+                S_SHAPE("mix") S_SHAPE("air") S_SHAPE("aniso") S_SHAPE("raw") S_SHAPE("neg") S_SHAPE("pane") "Material \"diffuse\" \"rgb reflectance\" [0.25 0.25 0.25]\n" S_TRI,
         0, &rep, &err);
     CHECK(s != NULL, "%s", err.msg);
     if (!s)
         return;
     const pf_material_t *m;
-    CHECK(s->nmeshes == 15, "the interface shape is dropped: %zu meshes", s->nmeshes);
+    CHECK(s->nmeshes == 16, "the interface shape is dropped: %zu meshes", s->nmeshes);
     if ((m = s_mat(s, "red")))
         CHECK(m->type == PF_MAT_DIFFUSE && s_vnear(m->kd, 0.8f, 0, 0));
     if ((m = s_mat(s, "cu")))
@@ -309,6 +310,10 @@ static void test_materials(void)
         CHECK(m->type == PF_MAT_GLASS && s_near(m->ior, 1.5168f));
     if ((m = s_mat(s, "water")))
         CHECK(m->type == PF_MAT_GLASS && s_near(m->ior, 1.33f) && s_vnear(m->kt, 1, 1, 1));
+    if ((m = s_mat(s, "pane")))
+        CHECK(m->type == PF_MAT_THIN_DIELECTRIC && s_near(m->ior, 1.52f) && s_vnear(m->ks, 1, 1, 1) &&
+                  s_vnear(m->kt, 1, 1, 1) && s_warned(&rep, "thindielectric") == 0,
+              "thindielectric: a thin sheet of index 1.52, not warned (type %d)", (int)m->type);
     if ((m = s_mat(s, "coat")))
         CHECK(m->type == PF_MAT_DIFFUSE && s_vnear(m->ks, 0.04f, 0.04f, 0.04f) && m->kd.x > 0.9f && m->kd.x < 0.961f &&
               m->ns >= 1000.0f, "kd %g ns %g", m->kd.x, m->ns);

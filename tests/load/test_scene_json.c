@@ -540,6 +540,27 @@ static void test_camera_lens(void)
     pf_scene_destroy(&sc);
 }
 
+/* A thin dielectric: glass's keys and defaults (ks 1), its own type;
+ * keys of other kinds are errors. */
+static void test_thin_dielectric(void)
+{
+    pf_error_t err = { { 0 } };
+    pf_scene_t *sc = s_json_text("{ \"materials\": [ { \"name\": \"window\", \"type\": \"thindielectric\",\n"
+                                 "  \"ior\": 1.52, \"kt\": [0.9, 0.95, 1] } ] }\n",
+                                 &err);
+    CHECK(sc && sc->nmats == 1, "a thin dielectric loads: %s", sc ? "" : err.msg);
+    if (sc && sc->nmats == 1) {
+        const pf_material_t *m = &sc->mats[0];
+        CHECK(m->type == PF_MAT_THIN_DIELECTRIC && m->ior == 1.52f && near3(m->ks, pf_v3s(1.0f), 0) &&
+                  near3(m->kt, pf_v3(0.9f, 0.95f, 1.0f), 0) && pf_is_black(m->kd),
+              "window type %d ior %g ks " V3F " kt " V3F, (int)m->type, (double)m->ior, V3A(m->ks), V3A(m->kt));
+    }
+    pf_scene_destroy(&sc);
+    sc = s_json_text("{ \"materials\": [ { \"name\": \"w\", \"type\": \"thindielectric\", \"kd\": 0.5 } ] }\n", &err);
+    CHECK(!sc && strstr(err.msg, "key 'kd' does not apply to a thindielectric material"), "kd on a pane: %s", err.msg);
+    pf_scene_destroy(&sc);
+}
+
 /* The conductor's keys: "eta" + "k" land as given, "reflectance" becomes
  * eta 1 and the k of that normal-incidence reflectance, "roughness" is the
  * GGX alpha (default 0); errors for both forms, neither, or bad ranges. */
@@ -699,6 +720,7 @@ int main(void)
     test_bad_inline();
     test_camera_lens();
     test_conductor();
+    test_thin_dielectric();
     test_models();
     test_remap_errors();
     test_corruptions();

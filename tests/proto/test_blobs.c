@@ -99,6 +99,13 @@ static pf_scene_t *s_tiny_scene(void)
     m.k = pf_v3(3.983f, 2.385f, 1.603f);
     m.alpha = 0.125f;
     pf_scene_add_material(s, &m);
+    m = pf_material_default("pane");
+    m.type = PF_MAT_THIN_DIELECTRIC;
+    m.kd = pf_v3s(0.0f);
+    m.ks = pf_v3s(1.0f);
+    m.kt = pf_v3(0.8f, 0.9f, 1.0f);
+    m.ior = 1.52f;
+    pf_scene_add_material(s, &m);
 
     pf_mesh_t quad;
     memset(&quad, 0, sizeof quad);
@@ -363,8 +370,9 @@ static void test_scene_blob(void)
     const s_spatch_t patches[] = {
         { 0, 1, 'X', 0, "bad magic", "magic" },
         { 4, 2, 9, 0, "format version 9", "version" },
-        { 4, 2, 2, 0, "format version 2, this build reads 4", "version 2 (before the lens)" },
-        { 4, 2, 3, 0, "format version 3, this build reads 4", "version 3 (before the conductor)" },
+        { 4, 2, 2, 0, "format version 2, this build reads 5", "version 2 (before the lens)" },
+        { 4, 2, 3, 0, "format version 3, this build reads 5", "version 3 (before the conductor)" },
+        { 4, 2, 4, 0, "format version 4, this build reads 5", "version 4 (before the thin dielectric)" },
         { o.reserved, 2, 1, 0, "reserved", "reserved field" },
         { o.has_camera, 1, 2, 0, "has_camera", "has_camera 2" },
         { o.has_camera + 1, -4, 0, NAN, "camera pos is not a finite number", "camera NaN" },
@@ -378,10 +386,11 @@ static void test_scene_blob(void)
         { o.focal_distance, -4, 0, INFINITY, "camera focal_distance is not a finite number", "infinite focus" },
         { o.lens_radius, -4, 0, 2e18f, "lens radius 2e+18 must be >= 0 and at most 1e18", "lens 2e18 (finalize)" },
         { o.nmats, 4, 0xffffffffu, 0, "materials need at least", "material count 2^32-1" },
-        { o.nmats, 4, 6, 0, "", "material count one too many" },
+        { o.nmats, 4, 7, 0, "", "material count one too many" },
         { o.mat0_name, 2, 64, 0, "name is 64 bytes", "material name too long" },
         { o.mat0_name + 2, 1, 0, 0, "NUL", "material name with a NUL" },
         { o.mat1_type, 1, 7, 0, "material 1 type 7", "material type" },
+        { o.mat1_type, 1, 5, 0, "material 1 type 5 is not a material type (0..4)", "material type 5" },
         { o.mat1_type + 1, -4, 0, INFINITY, "material 1 kd is not a finite number", "material inf" },
         { o.mat4_eta, -4, 0, -1.0f, "material 4 conductor needs eta > 0", "conductor eta -1" },
         { o.mat4_eta + 12, -4, 0, -0.5f, "material 4 conductor needs eta > 0", "conductor k -0.5" },
@@ -395,7 +404,7 @@ static void test_scene_blob(void)
         { o.mesh0_has_nrm, 1, 3, 0, "has_normals", "has_normals 3" },
         { o.mesh0_pos + 4, -4, 0, NAN, "positions is not a finite", "NaN position" },
         { o.mesh0_idx + 4, 4, 4, 0, "vertex index 4 is out of range", "vertex index" },
-        { o.mesh0_mat + 4, 4, 5, 0, "material index 5 is out of range", "triangle material" },
+        { o.mesh0_mat + 4, 4, 6, 0, "material index 6 is out of range", "triangle material" },
         { o.nspheres, 4, 0x7fffffffu, 0, "spheres need at least", "sphere count" },
         { o.sphere0_radius, -4, 0, 0.0f, "sphere 0: centre must be finite and radius > 0", "radius 0 (finalize)" },
         { o.sphere0_mat, 4, 9, 0, "sphere 0 material index 9", "sphere material" },
