@@ -15,7 +15,14 @@
  * lie on the same surface (normals within PF_FILTER_COS, within a pixel's
  * width of its tangent plane and PF_FILTER_REACH * (R + 1) pixel widths of
  * it; the width measured by tracing the paths one pixel over, s_footprint),
- * R = settings.gather_filter. Samples of one pixel are grouped into at most
+ * R = settings.gather_filter. A pixel's width along a surface seen at a
+ * grazing angle or from far can exceed the steps of a staircase or the
+ * spacing of shelves, whose treads get very different indirect light (each
+ * from its own riser), so the offset from the tangent plane must also be
+ * explained by the turn of the normal between the two points (curvature,
+ * creases between facets), give or take PF_FILTER_STEP pixel widths across
+ * the line of sight: parallel planes further apart than that never share
+ * (tests/render/test_filter_steps.c). Samples of one pixel are grouped into at most
  * PF_FILTER_MAX_CLUSTERS such surfaces; a sample fitting none keeps its own
  * gather. Only this gather is shared: direct light, caustics and the other
  * branches stay per sample, and their gathers are not filtered.
@@ -37,8 +44,16 @@ int pf_filter_same_surface(const pf_filter_cluster_t *c, pf_vec3 q, pf_vec3 m, f
     if (pf_dot(c->n, m) < PF_FILTER_COS)
         return 0;
     pf_vec3 d = pf_sub(q, c->p);
-    float r = reach * c->foot;
-    return fabsf(pf_dot(d, c->n)) <= c->foot && pf_dot(d, d) <= r * r;
+    float r = reach * c->foot, d2 = pf_dot(d, d), off = fabsf(pf_dot(d, c->n));
+    if (off > c->foot || d2 > r * r)
+        return 0;
+    /* The step guard: q must lie off p's tangent plane by no more than the
+     * turn of the normal from n to m explains (a curved or creased surface
+     * leaves its tangent plane by at most |d| sin(angle(n, m))), give or
+     * take PF_FILTER_STEP pixel widths across the line of sight (c->base,
+     * not c->foot, which grazing angles stretch and which a neighbouring
+     * path landing on the next step inflates). */
+    return off <= PF_FILTER_STEP * c->base + pf_len(pf_cross(c->n, m)) * sqrtf(d2);
 }
 
 int pf_filter_rec_find(const pf_filter_rec_t *rec, pf_vec3 q, pf_vec3 m)

@@ -16,12 +16,14 @@
 
 #define PF_FILTER_COS 0.95f  /* normals closer than this are one surface's */
 #define PF_FILTER_REACH 3.0f /* in pixel widths (c->foot), within a pixel */
+#define PF_FILTER_STEP 1.0f /* offsets from the tangent plane no turn of the normal explains, in c->base */
 enum { PF_FILTER_MAX_CLUSTERS = 4 };
 
 typedef struct pf_filter_cluster {
     pf_vec3 p, n; /* its first sample's hit point and (camera-facing) normal */
     pf_vec3 gsum; /* the sum of its samples' first gathers */
-    float foot;   /* a pixel's width at p */
+    float foot;   /* a pixel's width at p (along the surface, stretched at grazing angles) */
+    float base;   /* a pixel's width at p across the line of sight: the primary path's length times its angle */
     int count;
 } pf_filter_cluster_t;
 

@@ -652,16 +652,20 @@ static const pf_material_t *s_primary_hit(const pf_render_ctx_t *c, pf_ray_t ray
 }
 
 /* A pixel's width at the end of a primary path through film position
- * (fx, fy) ending at p (normal nf): the distance to where the paths one
- * pixel to the right and one down end on the same surface (mirrors and glass
- * spread them far beyond the path's length times the pixel's angle), at
- * least that length times the angle and at most S_FOOT_MAX times it. The
- * neighbouring paths leave from the same lens point as the sample's. */
+ * (fx, fy) ending at p (normal nf), with *base_out the path's length times
+ * the pixel's angle (its width across the line of sight): the distance to
+ * where the paths one pixel to the right and one down end on the same
+ * surface (mirrors and glass spread them far beyond the path's length times
+ * the pixel's angle), at least that length times the angle and at most
+ * S_FOOT_MAX times it. The neighbouring paths leave from the same lens
+ * point as the sample's. */
 #define S_FOOT_MAX 32.0f
-static float s_footprint(const pf_render_ctx_t *c, const s_film *film, pf_vec3 p, pf_vec3 nf, float length)
+static float s_footprint(const pf_render_ctx_t *c, const s_film *film, pf_vec3 p, pf_vec3 nf, float length,
+                         float *base_out)
 {
     float base = length * 2.0f * c->camera.tan_half_v / (float)c->camera.height;
     float foot = base;
+    *base_out = base;
     for (int k = 0; k < 2; k++) {
         pf_ray_t ray = pf_camera_ray_lens(&c->camera, film->fx + (k == 0 ? 1.0f : 0.0f),
                                           film->fy + (k == 1 ? 1.0f : 0.0f), film->u1, film->u2);
@@ -713,9 +717,11 @@ static void s_record_pixel(s_state *st, const s_pattern *pt, int px, int py, pf_
         int k = pf_filter_rec_find(rec, h.p, nf);
         if (k == PF_FILTER_MAX_CLUSTERS)
             continue; /* gathers for itself in the render pass */
-        if (k == rec->nc)
-            rec->c[rec->nc++] =
-                (pf_filter_cluster_t){ h.p, nf, pf_v3s(0.0f), s_footprint(c, &film, h.p, nf, length), 0 };
+        if (k == rec->nc) {
+            pf_filter_cluster_t *cl = &rec->c[rec->nc++];
+            *cl = (pf_filter_cluster_t){ .p = h.p, .n = nf, .gsum = pf_v3s(0.0f), .count = 0 };
+            cl->foot = s_footprint(c, &film, h.p, nf, length, &cl->base);
+        }
         sums[nb] = pf_v3s(0.0f);
         owner[nb] = k;
         s_first_gather_sum(st, &h, nf, ns, &d, &sums[nb++]);
