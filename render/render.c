@@ -69,7 +69,6 @@
 #include "render/render.h"
 
 #include <omp.h>
-#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -79,6 +78,7 @@
 #include "material/dielectric.h"
 #include "material/ggx.h"
 #include "photon/irrtex.h"
+#include "render/filter_impl.h"
 
 /* The camera samples of one pixel reach nearly the same points, and the
  * caustic estimate is a blur of radius r (its k-th photon's distance), so an
@@ -86,33 +86,6 @@
  * it was made at, on a surface facing the same way. Kept per pixel (reset at
  * each), so the image stays a function of the pixel alone. */
 #define S_CAUSTIC_REUSE 0.25f
-
-#define S_FILTER_COS 0.95f
-#define S_FILTER_REACH 3.0f
-enum { S_MAX_CLUSTERS = 4 };
-
-typedef struct s_cluster {
-    pf_vec3 p, n;   /* its first sample's hit point and (camera-facing) normal */
-    pf_vec3 gsum;   /* the sum of its samples' first gathers */
-    float foot;     /* a pixel's width at p */
-    int count;
-} s_cluster;
-
-typedef struct s_pixel_rec {
-    int nc;
-    s_cluster c[S_MAX_CLUSTERS];
-} s_pixel_rec;
-
-/* Whether q (normal m) lies on the surface of a cluster's point p (normal n)
- * within reach pixel widths. */
-static int s_same_surface(const s_cluster *c, pf_vec3 q, pf_vec3 m, float reach)
-{
-    if (pf_dot(c->n, m) < S_FILTER_COS)
-        return 0;
-    pf_vec3 d = pf_sub(q, c->p);
-    float r = reach * c->foot;
-    return fabsf(pf_dot(d, c->n)) <= c->foot && pf_dot(d, d) <= r * r;
-}
 
 /* Per-thread state for one pixel sample. */
 typedef struct s_state {
@@ -127,8 +100,8 @@ typedef struct s_state {
      * the first of the pixel's surfaces (rec) it lies on, else gathers with
      * the sample's own gather stream. */
     int filtering;
-    const s_pixel_rec *rec;
-    pf_vec3 gf[S_MAX_CLUSTERS];
+    const pf_filter_rec_t *rec;
+    pf_vec3 gf[PF_FILTER_MAX_CLUSTERS];
     uint64_t pixel;
     uint32_t sample;
     /* The BSDF-sampled ray of a rough conductor (s_rough) in flight: where it
@@ -357,10 +330,11 @@ static pf_vec3 s_first_gather(s_state *st, const pf_hit_t *h, pf_vec3 nf, pf_vec
 {
     /* The surfaces are tried in the order they were found, as the records
      * assigned each sample to the first that took it (or to none of the
-     * S_MAX_CLUSTERS), so this is the surface the sample's gather went to. */
-    for (int k = 0; st->rec && k < st->rec->nc; k++)
-        if (s_same_surface(&st->rec->c[k], h->p, nf, S_FILTER_REACH))
-            return st->gf[k];
+     * PF_FILTER_MAX_CLUSTERS), so this is the surface the sample's gather
+     * went to. */
+    int k = st->rec ? pf_filter_rec_find(st->rec, h->p, nf) : 0;
+    if (st->rec && k < st->rec->nc)
+        return st->gf[k];
     pf_vec3 sum = pf_v3s(0.0f);
     s_first_gather_sum(st, h, nf, ns, NULL, &sum);
     return pf_scale(sum, 1.0f / (float)st->ctx->settings.gather);
@@ -553,26 +527,8 @@ void pf_render_ctx_init(pf_render_ctx_t *ctx, const pf_frame_t *frame, const pf_
     ctx->shrink2 = pf_pass_shrink2(settings->pass);
 }
 
-/* Filtering the first gather.
- *
- * The indirect term is smooth where the surface is, so the gathers of a
- * pixel's neighbours estimate it as well as its own: every camera sample
- * whose primary path (through mirrors, and glass refracting near the eye;
- * s_primary_hit) ends on a diffuse surface takes the mean of the gathers
- * there of all samples in the (2R+1) x (2R+1) pixels around its pixel that
- * lie on the same surface (normals within S_FILTER_COS, within a pixel's
- * width of its tangent plane and S_FILTER_REACH * (R + 1) pixel widths of
- * it; the width measured by tracing the paths one pixel over, s_footprint),
- * R = settings.gather_filter. Samples of one pixel are grouped into at most
- * S_MAX_CLUSTERS such surfaces; a sample fitting none keeps its own gather.
- * Only this gather is shared: direct light, caustics and the other branches
- * stay per sample, and their gathers are not filtered.
- *
- * A first gather draws from its own stream (seed, gather, pixel, sample), so
- * a tile computes its neighbours' records exactly as their own tiles do: the
- * image still depends on the pixel alone, never on the tiling. The border of
- * R pixels costs one camera ray and one gather per sample (about 13 % more
- * gathers for 32-pixel tiles at R = 1). */
+/* Filtering the first gather: see render/filter.c. */
+
 /* The tile's sampling pattern: jitter stratified on a kx x ky grid,
  * kx = floor(sqrt(spp)) and ky = floor(spp / kx) (edges against the bright
  * light dominate the error otherwise); the few samples beyond kx * ky are
@@ -669,23 +625,27 @@ static const pf_material_t *s_primary_hit(const pf_render_ctx_t *c, pf_ray_t ray
 }
 
 /* A pixel's width at the end of a primary path through film position
- * (fx, fy) ending at p (normal nf): the distance to where the paths one
- * pixel to the right and one down end on the same surface (mirrors and glass
- * spread them far beyond the path's length times the pixel's angle), at
- * least that length times the angle and at most S_FOOT_MAX times it. The
- * neighbouring paths leave from the same lens point as the sample's. */
+ * (fx, fy) ending at p (normal nf), with *base_out the path's length times
+ * the pixel's angle (its width across the line of sight): the distance to
+ * where the paths one pixel to the right and one down end on the same
+ * surface (mirrors and glass spread them far beyond the path's length times
+ * the pixel's angle), at least that length times the angle and at most
+ * S_FOOT_MAX times it. The neighbouring paths leave from the same lens
+ * point as the sample's. */
 #define S_FOOT_MAX 32.0f
-static float s_footprint(const pf_render_ctx_t *c, const s_film *film, pf_vec3 p, pf_vec3 nf, float length)
+static float s_footprint(const pf_render_ctx_t *c, const s_film *film, pf_vec3 p, pf_vec3 nf, float length,
+                         float *base_out)
 {
     float base = length * 2.0f * c->camera.tan_half_v / (float)c->camera.height;
     float foot = base;
+    *base_out = base;
     for (int k = 0; k < 2; k++) {
         pf_ray_t ray = pf_camera_ray_lens(&c->camera, film->fx + (k == 0 ? 1.0f : 0.0f),
                                           film->fy + (k == 1 ? 1.0f : 0.0f), film->u1, film->u2);
         pf_hit_t h;
         pf_vec3 n2, ns2;
         float len2;
-        if (!s_primary_hit(c, ray, &h, &n2, &ns2, &len2) || pf_dot(n2, nf) < S_FILTER_COS)
+        if (!s_primary_hit(c, ray, &h, &n2, &ns2, &len2) || pf_dot(n2, nf) < PF_FILTER_COS)
             continue;
         foot = fmaxf(foot, pf_len(pf_sub(h.p, p)));
     }
@@ -695,11 +655,11 @@ static float s_footprint(const pf_render_ctx_t *c, const s_film *film, pf_vec3 p
 /* Makes the texel reads d holds and adds the nb samples' gathers (sums) to
  * their surfaces' (owner) in rec. Returns 0, the samples left. */
 static int s_record_flush(const s_state *st, s_defer *d, const pf_vec3 *sums, const int *owner, int nb,
-                          s_pixel_rec *rec)
+                          pf_filter_rec_t *rec)
 {
     s_defer_flush(st, d);
     for (int i = 0; i < nb; i++) {
-        s_cluster *cl = &rec->c[owner[i]];
+        pf_filter_cluster_t *cl = &rec->c[owner[i]];
         cl->gsum = pf_add(cl->gsum, pf_scale(sums[i], 1.0f / (float)st->ctx->settings.gather));
         cl->count++;
     }
@@ -711,7 +671,7 @@ static int s_record_flush(const s_state *st, s_defer *d, const pf_vec3 *sums, co
  * samples are traced (s_defer; up to S_DEFER_MAX samples at a time), so
  * their trips from memory overlap the traces; each sample's gather still
  * reaches its surface's sum in sample order. */
-static void s_record_pixel(s_state *st, const s_pattern *pt, int px, int py, s_pixel_rec *rec)
+static void s_record_pixel(s_state *st, const s_pattern *pt, int px, int py, pf_filter_rec_t *rec)
 {
     const pf_render_ctx_t *c = st->ctx;
     rec->nc = 0;
@@ -727,13 +687,14 @@ static void s_record_pixel(s_state *st, const s_pattern *pt, int px, int py, s_p
         float length;
         if (!s_primary_hit(c, ray, &h, &nf, &ns, &length))
             continue;
-        int k = 0;
-        while (k < rec->nc && !s_same_surface(&rec->c[k], h.p, nf, S_FILTER_REACH))
-            k++;
-        if (k == S_MAX_CLUSTERS)
+        int k = pf_filter_rec_find(rec, h.p, nf);
+        if (k == PF_FILTER_MAX_CLUSTERS)
             continue; /* gathers for itself in the render pass */
-        if (k == rec->nc)
-            rec->c[rec->nc++] = (s_cluster){ h.p, nf, pf_v3s(0.0f), s_footprint(c, &film, h.p, nf, length), 0 };
+        if (k == rec->nc) {
+            pf_filter_cluster_t *cl = &rec->c[rec->nc++];
+            *cl = (pf_filter_cluster_t){ .p = h.p, .n = nf, .gsum = pf_v3s(0.0f), .count = 0 };
+            cl->foot = s_footprint(c, &film, h.p, nf, length, &cl->base);
+        }
         sums[nb] = pf_v3s(0.0f);
         owner[nb] = k;
         s_first_gather_sum(st, &h, nf, ns, &d, &sums[nb++]);
@@ -749,10 +710,7 @@ struct pf_tile_plan {
     s_pattern pt;
     int x0, y0, w, h;
     int R, filter;
-    int rx0, ry0, rw, rh; /* the records' rectangle: the tile and its border, clipped to the image */
-    s_pixel_rec *recs;
-    atomic_int *done;     /* per record row: recorded */
-    omp_lock_t *locks;    /* per record row: held while it is recorded */
+    pf_filter_grid_t grid; /* the tile and its border, clipped to the image */
 };
 
 static s_state *s_state_new(const pf_render_ctx_t *ctx, int filtering)
@@ -777,87 +735,33 @@ pf_tile_plan_t *pf_tile_plan_new(const pf_render_ctx_t *ctx, int x0, int y0, int
     p->R = ctx->settings.gather_filter;
     p->filter = p->R > 0 && ctx->settings.gather > 0 && (ctx->terms & PF_TERM_INDIRECT) &&
                 !(ctx->terms & PF_TERM_PHOTONMAP);
-    if (p->filter) {
-        int R = p->R;
-        p->rx0 = x0 - R > 0 ? x0 - R : 0;
-        p->ry0 = y0 - R > 0 ? y0 - R : 0;
-        int rx1 = x0 + w + R < ctx->camera.width ? x0 + w + R : ctx->camera.width;
-        int ry1 = y0 + h + R < ctx->camera.height ? y0 + h + R : ctx->camera.height;
-        p->rw = rx1 - p->rx0;
-        p->rh = ry1 - p->ry0;
-        p->recs = malloc((size_t)p->rw * (size_t)p->rh * sizeof *p->recs);
-        p->done = malloc((size_t)p->rh * sizeof *p->done);
-        p->locks = malloc((size_t)p->rh * sizeof *p->locks);
-        PF_CHECK(p->recs != NULL && p->done != NULL && p->locks != NULL);
-        for (int r = 0; r < p->rh; r++) {
-            atomic_init(&p->done[r], 0);
-            omp_init_lock(&p->locks[r]);
-        }
-    }
+    if (p->filter)
+        pf_filter_grid_init(&p->grid, p->R, x0, y0, w, h, ctx->camera.width, ctx->camera.height);
     return p;
 }
 
-int pf_tile_plan_record_rows(const pf_tile_plan_t *p) { return p->filter ? p->rh : 0; }
+int pf_tile_plan_record_rows(const pf_tile_plan_t *p) { return p->filter ? p->grid.rh : 0; }
 
-static void s_record_row(pf_tile_plan_t *p, int row);
-
-void pf_tile_plan_record_row(pf_tile_plan_t *p, int row)
+/* Records row `row` of plan `user`'s grid (pf_filter_grid_record_row). */
+static void s_record_row(void *user, int row)
 {
-    if (atomic_load_explicit(&p->done[row], memory_order_acquire))
-        return;
-    omp_set_lock(&p->locks[row]);
-    if (!atomic_load_explicit(&p->done[row], memory_order_relaxed)) {
-        s_record_row(p, row);
-        atomic_store_explicit(&p->done[row], 1, memory_order_release);
-    }
-    omp_unset_lock(&p->locks[row]);
-}
-
-static void s_record_row(pf_tile_plan_t *p, int row)
-{
+    pf_tile_plan_t *p = user;
     s_state *st = s_state_new(p->ctx, 0);
-    for (int x = 0; x < p->rw; x++) {
-        size_t i = (size_t)row * (size_t)p->rw + (size_t)x;
-        s_record_pixel(st, &p->pt, p->rx0 + x, p->ry0 + row, &p->recs[i]);
-    }
+    int py = p->grid.ry0 + row;
+    for (int px = p->grid.rx0; px < p->grid.rx0 + p->grid.rw; px++)
+        s_record_pixel(st, &p->pt, px, py, pf_filter_grid_at(&p->grid, px, py));
     free(st);
 }
 
-/* The filtered first gather of each of pixel (px, py)'s surfaces: the mean
- * over the neighbourhood's samples on it. */
-static void s_filtered_gathers(const pf_tile_plan_t *p, int px, int py, pf_vec3 gf[S_MAX_CLUSTERS])
-{
-    int R = p->R;
-    const s_pixel_rec *rec = &p->recs[(size_t)(py - p->ry0) * (size_t)p->rw + (size_t)(px - p->rx0)];
-    for (int k = 0; k < rec->nc; k++) {
-        const s_cluster *own = &rec->c[k];
-        pf_vec3 sum = pf_v3s(0.0f);
-        int count = 0;
-        for (int qy = py - R; qy <= py + R; qy++) {
-            if (qy < p->ry0 || qy >= p->ry0 + p->rh)
-                continue;
-            for (int qx = px - R; qx <= px + R; qx++) {
-                if (qx < p->rx0 || qx >= p->rx0 + p->rw)
-                    continue;
-                const s_pixel_rec *q = &p->recs[(size_t)(qy - p->ry0) * (size_t)p->rw + (size_t)(qx - p->rx0)];
-                for (int j = 0; j < q->nc; j++)
-                    if (s_same_surface(own, q->c[j].p, q->c[j].n, S_FILTER_REACH * (float)(R + 1))) {
-                        sum = pf_add(sum, q->c[j].gsum);
-                        count += q->c[j].count;
-                    }
-            }
-        }
-        gf[k] = pf_scale(sum, 1.0f / (float)count);
-    }
-}
+void pf_tile_plan_record_row(pf_tile_plan_t *p, int row) { pf_filter_grid_record_row(&p->grid, row, s_record_row, p); }
 
 void pf_tile_plan_render_row(pf_tile_plan_t *p, int row, float *out)
 {
     const pf_render_ctx_t *ctx = p->ctx;
     if (p->filter) {
         /* the record rows this row's filter reads: R above to R below */
-        int first = p->y0 + row - p->R - p->ry0, last = p->y0 + row + p->R - p->ry0;
-        for (int r = first > 0 ? first : 0; r <= last && r < p->rh; r++)
+        int first = p->y0 + row - p->R - p->grid.ry0, last = p->y0 + row + p->R - p->grid.ry0;
+        for (int r = first > 0 ? first : 0; r <= last && r < p->grid.rh; r++)
             pf_tile_plan_record_row(p, r);
     }
     s_state *st = s_state_new(ctx, p->filter);
@@ -865,8 +769,8 @@ void pf_tile_plan_render_row(pf_tile_plan_t *p, int row, float *out)
     for (int x = 0; x < p->w; x++) {
         int px = p->x0 + x;
         if (p->filter) {
-            st->rec = &p->recs[(size_t)(py - p->ry0) * (size_t)p->rw + (size_t)(px - p->rx0)];
-            s_filtered_gathers(p, px, py, st->gf);
+            st->rec = pf_filter_grid_at(&p->grid, px, py);
+            pf_filter_gathers(&p->grid, px, py, st->gf);
         }
         double acc[3] = { 0, 0, 0 };
         st->caustic_valid = 0;
@@ -895,12 +799,7 @@ void pf_tile_plan_free(pf_tile_plan_t *p)
 {
     if (!p)
         return;
-    if (p->locks)
-        for (int r = 0; r < p->rh; r++)
-            omp_destroy_lock(&p->locks[r]);
-    free(p->locks);
-    free((void *)p->done);
-    free(p->recs);
+    pf_filter_grid_free(&p->grid);
     free(p);
 }
 
@@ -922,7 +821,7 @@ void pf_render_tile_cost(const pf_render_ctx_t *ctx, int x0, int y0, int w, int 
         double t2 = pf_now();
         cost->record_s += t1 - t0;
         cost->render_s += t2 - t1;
-        cost->record_samples += (uint64_t)p->rw * (uint64_t)p->rh * (uint64_t)p->pt.spp;
+        cost->record_samples += (uint64_t)p->grid.rw * (uint64_t)p->grid.rh * (uint64_t)p->pt.spp;
         cost->samples += (uint64_t)w * (uint64_t)h * (uint64_t)p->pt.spp;
     }
     pf_tile_plan_free(p);
