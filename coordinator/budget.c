@@ -17,6 +17,7 @@
 #define S_RESERVE_S 0.25
 #define S_RESERVE_SHARE 0.03
 #define S_SAFETY 0.85
+#define S_LAST_SAFETY 0.97
 
 void pf_budget_init(pf_budget_t *b, double start, double limit_s, int render_threads, int tile)
 {
@@ -191,12 +192,12 @@ void pf_budget_plan_spp(pf_budget_t *b, const pf_frame_t *frame, unsigned terms,
 
 double pf_budget_pass_seconds(const pf_budget_t *b, int pass)
 {
-    double t0 = b->limit_s / 40.0, tmax = b->limit_s / 8.0;
+    double t0 = b->limit_s / 40.0, tmax = b->limit_s / 3.0;
     t0 = t0 < 0.25 ? 0.25 : t0 > 2.0 ? 2.0 : t0;
     tmax = tmax > t0 ? tmax : t0;
     double t = t0;
     for (int i = 0; i < pass && t < tmax; i++)
-        t *= 1.5;
+        t *= 2.0;
     return t < tmax ? t : tmax;
 }
 
@@ -213,7 +214,7 @@ int pf_budget_plan_pass_photons(pf_budget_t *b, int pass, pf_settings_t *s)
         want = left;
     double rate = b->pass_photon_s > 0.0 ? b->pass_photon_s : b->photon_s_per_photon;
     int maps_n = (s->photons ? 1 : 0) + (s->caustic_photons ? 1 : 0);
-    uint64_t each = maps_n && rate > 0.0 ? s_clamp_photons(PF_BUDGET_PHOTON_SHARE * want / rate / maps_n) : 0;
+    uint64_t each = maps_n && rate > 0.0 ? s_clamp_photons(PF_BUDGET_PASS_PHOTON_SHARE * want / rate / maps_n) : 0;
     if (s->photons && !b->fix_photons)
         s->photons = each;
     if (s->caustic_photons && !b->fix_caustic)
@@ -248,9 +249,13 @@ void pf_budget_plan_pass_spp(pf_budget_t *b, const pf_frame_t *frame, unsigned t
     /* Within 1.5 passes of the deadline, this pass is the last: it takes
      * what is left, rather than leave a sliver for a pass too short to pay
      * for its photons. */
-    if (end > hard || hard - end < 0.5 * pf_budget_pass_seconds(b, pass + 1))
+    int last = end > hard || hard - end < 0.5 * pf_budget_pass_seconds(b, pass + 1);
+    if (last)
         end = hard;
-    double spp = b->pass_spp_s > 0.0 ? floor(S_SAFETY * (end - pf_now() - b->pass_fixed_s) / b->pass_spp_s) : 1.0;
+    /* The last pass is cut at the deadline if it runs late (only its
+     * unfinished tiles are lost), so it may plan closer to it. */
+    double safety = last && pass > 0 ? S_LAST_SAFETY : S_SAFETY;
+    double spp = b->pass_spp_s > 0.0 ? floor(safety * (end - pf_now() - b->pass_fixed_s) / b->pass_spp_s) : 1.0;
     if (!(spp >= 1.0))
         spp = 1.0;
     if (spp > (double)(1 << 16))

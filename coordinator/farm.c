@@ -69,7 +69,8 @@ static int s_photon_blobs(pf_fm_photons_t *p)
     int rc = pf_sceneblob_write(p->scene, &sb);
     if (rc == PF_OK) {
         p->scene_hash = pf_hash_bytes(PF_HASH_INIT, sb.data, sb.len);
-        rc = pf_mapfile_write(&p->frame.maps, p->scene_hash, pf_settings_hash(&p->settings), &mb);
+        rc = pf_mapfile_write(p->pass ? &p->next : &p->frame.maps, p->scene_hash, pf_settings_hash(&p->settings),
+                              &mb);
         p->maps_hash = pf_hash_bytes(PF_HASH_INIT, mb.data, mb.len);
         if (rc)
             pf_error_set(&p->err, rc, NULL, 0, "cannot serialize the photon maps: %s", pf_strerror(rc));
@@ -87,8 +88,23 @@ static int s_photon_blobs(pf_fm_photons_t *p)
     return rc;
 }
 
-/* The photon pass of pass p->pass (the frame is opened for the first):
- * under a time limit its photons are planned first and its spp after. */
+/* A later pass's photon pass, its settings planned (pf_fm_pass_plan), into
+ * p->next: the frame's maps are the pass being gathered. */
+static void s_photon_pass_next(pf_fm_photons_t *p)
+{
+    double t0 = pf_now();
+    pf_photon_maps_free(&p->next);
+    p->rc = pf_photon_pass(p->scene, p->frame.accel, p->frame.lights, &p->settings, &p->next, &p->stats);
+    if (p->rc) {
+        pf_error_set(&p->err, p->rc, NULL, 0, "photon pass failed: %s", pf_strerror(p->rc));
+        return;
+    }
+    pf_photon_skip_gather(&p->stats, &p->settings);
+    p->photon_s = pf_now() - t0;
+}
+
+/* The first pass's photon pass (the frame is opened for it): under a time
+ * limit its photons are planned first and its spp after. */
 static void s_photon_pass(pf_fm_photons_t *p)
 {
     pf_frame_t *fr = &p->frame;
@@ -130,7 +146,7 @@ static void *s_photon_thread(void *arg)
     pf_fm_photons_t *p = arg;
     p->rc = p->frame.accel ? PF_OK : pf_frame_open(&p->frame, p->scene, &p->err);
     if (p->rc == PF_OK)
-        s_photon_pass(p);
+        (p->pass ? s_photon_pass_next : s_photon_pass)(p);
     if (p->rc == PF_OK && !p->no_pass)
         p->rc = s_photon_blobs(p);
     __atomic_store_n(&p->done, 1, __ATOMIC_RELEASE);
@@ -384,9 +400,10 @@ static int s_start_local_workers(pf_fm_t *f, pf_error_t *err)
 }
 
 /* The photon pass runs beside the event loop: the first pass's with
- * scene, settings and terms given; the next pass's (pf_fm_pass_reset) with
- * scene NULL. */
-static int s_start_photons(pf_fm_t *f, const pf_scene_t *scene, const pf_settings_t *s, unsigned terms,
+ * scene, settings and terms given (pass 0); a later pass's with scene NULL,
+ * pass and its settings s planned (pf_fm_pass_plan), while the workers
+ * gather the pass before. */
+static int s_start_photons(pf_fm_t *f, const pf_scene_t *scene, int pass, const pf_settings_t *s, unsigned terms,
                            pf_error_t *err)
 {
     if (scene) {
@@ -395,8 +412,13 @@ static int s_start_photons(pf_fm_t *f, const pf_scene_t *scene, const pf_setting
         f->ph.budget = f->o->budget;
         f->ph.terms = terms;
         f->ph.progressive = pf_fm_progressive(f);
+    } else {
+        f->ph.settings = *s;
     }
-    f->ph.job = f->job;
+    f->ph.pass = pass;
+    f->ph.job = f->job0 + (uint64_t)pass;
+    if (f->ph.job == 0)
+        f->ph.job = 1;
     f->ph.rc = PF_OK;
     f->ph.no_pass = 0;
     memset(&f->ph.stats, 0, sizeof f->ph.stats);
@@ -421,6 +443,24 @@ static int s_on_photons_done(pf_fm_t *f, pf_error_t *err)
     pf_progress_end(&f->bar);
     if (f->ph.no_pass)
         return PF_OK; /* the caller ends the render */
+    if (f->ph.pass > 0) {
+        /* The pass traced beside the last one begins: its maps become the
+         * frame's (the verification renders read them), its spp is planned
+         * for the time it now has. */
+        pf_frame_drop_maps(&f->ph.frame);
+        f->ph.frame.maps = f->ph.next;
+        memset(&f->ph.next, 0, sizeof f->ph.next);
+        f->frame_readied = 0;
+        if (f->o->budget) {
+            pf_budget_photons_done(f->o->budget, f->ph.photon_s,
+                                   f->ph.settings.photons + f->ph.frame.maps.caustic_emitted);
+            pf_budget_plan_pass_spp(f->o->budget, &f->ph.frame, f->ph.terms, f->ph.settings.threads, f->ph.pass,
+                                    pf_now(), &f->ph.settings);
+        }
+    }
+    f->cur = f->ph.settings;
+    f->cur_pass = f->ph.pass;
+    f->job = f->ph.job;
     sum->photons = f->ph.stats;
     sum->photons_total += f->ph.settings.photons + f->ph.frame.maps.caustic_emitted;
     if (f->ph.pass == 0)
@@ -445,6 +485,10 @@ static int s_on_photons_done(pf_fm_t *f, pf_error_t *err)
     for (int i = 0; i < f->reg.nw; i++)
         if (f->reg.w[i].state == PF_W_HELLO)
             pf_fm_send_job(f, i);
+    /* The next pass's photons, traced while the workers gather this one. */
+    pf_settings_t next;
+    if (f->ph.progressive && pf_fm_pass_more(f, NULL) && !pf_fm_pass_plan(f, f->cur_pass + 1, &next))
+        return s_start_photons(f, NULL, f->cur_pass + 1, &next, 0, err);
     return PF_OK;
 }
 
@@ -513,7 +557,7 @@ static void s_note_progress(pf_fm_t *f, int alive)
 {
     char note[256];
     int nn = snprintf(note, sizeof note, "workers %d", alive);
-    uint64_t blobs = f->ph.scene_size + f->ph.maps_size;
+    uint64_t blobs = f->jobmsg.scene_size + f->jobmsg.maps_size;
     for (int i = 0; i < f->reg.nw && nn < (int)sizeof note - 40; i++) {
         const pf_worker_t *w = &f->reg.w[i];
         if (w->state == PF_W_JOB_SENT && w->blob_sent > 0 && w->blob_sent < blobs)
@@ -547,13 +591,19 @@ static int s_pass_turn(pf_fm_t *f, volatile int *stop, pf_error_t *err)
         }
         pf_progress_end(&f->bar);
         int rc = pf_fm_pass_reset(f, err);
-        if (rc == PF_OK)
-            rc = s_start_photons(f, NULL, NULL, 0, err);
+        if (rc == PF_OK && !f->ph_started) {
+            /* Its photons were not traced beside this pass (the time left
+             * said no; a wrong guess, as the pass ended early): now. */
+            pf_settings_t next;
+            if (pf_fm_pass_plan(f, f->cur_pass + 1, &next))
+                return 1;
+            rc = s_start_photons(f, NULL, f->cur_pass + 1, &next, 0, err);
+        }
         pf_progress_begin(&f->bar, "photons", f->o->show_progress);
         return rc;
     }
     const pf_budget_t *b = f->o->budget;
-    int late = b && f->ph.pass > 0 && pf_now() > pf_budget_tiles_deadline(b);
+    int late = b && f->cur_pass > 0 && pf_now() > pf_budget_tiles_deadline(b);
     if (!stopped && !late)
         return 0;
     if (f->job_ready)
@@ -690,6 +740,7 @@ static void s_free(pf_fm_t *f)
     s_remove_ipc(f);
     pf_xfer_destroy(&f->xfer);
     pf_frame_close(&f->ph.frame);
+    pf_photon_maps_free(&f->ph.next);
     pf_framed_blob_free(&f->ph.scene_fb);
     pf_framed_blob_free(&f->ph.maps_fb);
     pf_buf_free(&f->out);
@@ -730,7 +781,7 @@ int pf_farm_render(const pf_scene_t *scene, const pf_settings_t *settings, unsig
     if (rc == PF_OK)
         rc = s_start_local_workers(&f, err);
     if (rc == PF_OK)
-        rc = s_start_photons(&f, scene, &s, terms, err);
+        rc = s_start_photons(&f, scene, 0, &s, terms, err);
     if (rc == PF_OK) {
         rc = s_event_loop(&f, stop, err);
         s_end_job(&f, rc);

@@ -33,6 +33,11 @@ typedef struct pf_fm_photons {
     int pass;               /* the progressive pass traced (0: the first, or the only one) */
     int progressive;
     int no_pass;            /* set by the thread: no pass fits in the time left (nothing was traced) */
+    /* Passes after the first are traced while the workers gather the one
+     * before: into these maps, which replace the frame's when their pass
+     * begins (pf_fm_pass_begin); photon_s is the trace's wall time. */
+    pf_photon_maps_t next;
+    double photon_s;
     pf_budget_t *budget;
     unsigned terms;
     uint64_t job;
@@ -92,10 +97,14 @@ typedef struct pf_fm {
     char evict_why[16][96];
     int nevict;
     /* Progressive passes (farm_pass.c): the running mean, the first job id
-     * (pass i is job job0 + i), when this pass's tiles began. */
+     * (pass i is job job0 + i), when this pass's tiles began, the pass being
+     * gathered and its settings (the photon thread may be tracing the next
+     * one meanwhile: f->ph.settings are its). */
     pf_accum_t acc;
     uint64_t job0;
     double pass_start;
+    int cur_pass;
+    pf_settings_t cur;
 } pf_fm_t;
 
 /* farm_peers.c */
@@ -142,9 +151,13 @@ void pf_fm_pass_cut(pf_fm_t *f);
 /* 1 when another pass should follow the one just added. */
 int pf_fm_pass_more(const pf_fm_t *f, volatile int *stop);
 /* Readies the tables for the next pass (leases, checks, the workers'
- * transfer state; a new job id): the caller then starts its photon pass.
- * 0 or PF_ENOMEM. */
+ * transfer state; the next job id, so the finished pass's late messages are
+ * stale): its JOB goes out when its photon pass is done. 0 or PF_ENOMEM. */
 int pf_fm_pass_reset(pf_fm_t *f, pf_error_t *err);
+/* The settings of pass `pass` as the photon thread is to trace it (the
+ * render's, its index and seed; under a time limit, its photons planned).
+ * 1 when no pass fits in the time left. */
+int pf_fm_pass_plan(pf_fm_t *f, int pass, pf_settings_t *s);
 /* The running mean into f->img. */
 void pf_fm_pass_resolve(pf_fm_t *f);
 

@@ -2,8 +2,10 @@
  * pass is a job of its own (job id job0 + pass, its own maps blob; the
  * scene blob's content, and so its hash, is the same, so a worker fetches
  * it once) rendered into f->img, then added to the running mean (accum.h).
- * The next pass's photons are traced once this one's tiles are all in; a
- * pass cut short by the deadline or a signal adds the tiles it finished.
+ * The next pass's photons are traced while this one's tiles are gathered
+ * (farm.c's photon thread, into maps of their own); its JOB goes out once
+ * this pass's tiles are all in and its maps are ready. A pass cut short by
+ * the deadline or a signal adds the tiles it finished.
  * Results of an earlier pass carry its job id and are dropped as stale.
  * Called from the event loop's thread. */
 #include <math.h>
@@ -21,7 +23,7 @@ int pf_fm_progressive(const pf_fm_t *f) { return f->o->budget != NULL || f->o->p
 static int s_add_done(pf_fm_t *f)
 {
     int n = 0;
-    uint32_t spp = (uint32_t)f->ph.settings.spp;
+    uint32_t spp = (uint32_t)f->cur.spp;
     for (int i = 0; i < f->L.nt; i++) {
         const pf_tile_t *t = &f->L.t[i];
         if (t->state != PF_T_DONE)
@@ -36,7 +38,7 @@ static int s_add_done(pf_fm_t *f)
 static void s_pass_log(pf_fm_t *f, int done)
 {
     pf_farm_summary_t *sum = f->sum;
-    const pf_settings_t *s = &f->ph.settings;
+    const pf_settings_t *s = &f->cur;
     char left[48] = "", err[48] = "";
     if (f->o->budget)
         snprintf(left, sizeof left, ", %.1f s left", pf_budget_left(f->o->budget));
@@ -54,10 +56,10 @@ void pf_fm_pass_whole(pf_fm_t *f)
     s_add_done(f);
     sum->passes++;
     sum->passes_whole++;
-    sum->spp_total += (uint64_t)f->ph.settings.spp;
+    sum->spp_total += (uint64_t)f->cur.spp;
     sum->error_est = pf_accum_error(&f->acc);
     if (f->o->budget)
-        pf_budget_pass_done(f->o->budget, f->ph.settings.spp, pf_now() - f->pass_start);
+        pf_budget_pass_done(f->o->budget, f->cur.spp, pf_now() - f->pass_start);
     s_pass_log(f, f->L.nt);
 }
 
@@ -76,7 +78,7 @@ int pf_fm_pass_more(const pf_fm_t *f, volatile int *stop)
 {
     if (stop && *stop)
         return 0;
-    int next = f->ph.pass + 1;
+    int next = f->cur_pass + 1;
     if (f->o->passes > 0 && next >= f->o->passes)
         return 0;
     if (next >= PF_MAX_PASSES)
@@ -113,13 +115,18 @@ int pf_fm_pass_reset(pf_fm_t *f, pf_error_t *err)
             return pf_error_set(err, PF_ENOMEM, NULL, 0, "out of memory");
     }
     f->job_ready = 0;
-    f->frame_readied = 0;
-    f->ph.pass++;
-    f->job = f->job0 + (uint64_t)f->ph.pass;
+    f->job = f->job0 + (uint64_t)(f->cur_pass + 1);
     if (f->job == 0)
         f->job = 1;
-    f->ph.job = f->job;
     return PF_OK;
+}
+
+int pf_fm_pass_plan(pf_fm_t *f, int pass, pf_settings_t *s)
+{
+    *s = f->ph.base;
+    s->pass = pass;
+    s->seed = pf_pass_seed(f->ph.base.seed, pass);
+    return f->o->budget ? pf_budget_plan_pass_photons(f->o->budget, pass, s) : 0;
 }
 
 void pf_fm_pass_resolve(pf_fm_t *f)

@@ -352,7 +352,7 @@ static void s_on_ready(pf_fm_t *f, int wi, const pf_msg_ready_t *r)
         pf_fm_strike(f, wi, w->state == PF_W_READY ? "READY again" : "READY before its JOB");
         return;
     }
-    pf_log(f->ph.pass ? PF_LOG_DEBUG : PF_LOG_INFO, "worker %s ready: scene and maps built", w->name);
+    pf_log(f->cur_pass ? PF_LOG_DEBUG : PF_LOG_INFO, "worker %s ready: scene and maps built", w->name);
     w->state = PF_W_READY;
     w->asked = r->credit;
 }

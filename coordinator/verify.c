@@ -80,7 +80,7 @@ static void s_render_here(pf_fm_t *f, int ti)
         f->frame_readied = 1;
     }
     pf_render_ctx_t ctx;
-    pf_render_ctx_init(&ctx, &f->ph.frame, &f->ph.settings);
+    pf_render_ctx_init(&ctx, &f->ph.frame, &f->cur);
     ctx.terms = f->ph.terms;
     double t0 = pf_now();
     pf_render_tile(&ctx, (int)t->x0, (int)t->y0, (int)t->w, (int)t->h, f->lpix);
