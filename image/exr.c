@@ -9,7 +9,7 @@
  *
  * No shared state: any thread may call any function on distinct images. */
 #include "image/image.h"
-#include "image/sync.h"
+#include "base/atomicfile.h"
 
 #include <errno.h>
 #include <fcntl.h>
@@ -179,24 +179,7 @@ int pf_image_write_exr(const pf_image_t *img, const char *path, int half, pf_err
         return PF_EIO;
     }
     /* SaveEXR closed the file: reopen it to fsync it before the rename. */
-    int fd = open(tmp, O_RDONLY | O_CLOEXEC);
-    if (fd < 0 || fsync(fd) != 0) {
-        int e = errno;
-        if (fd >= 0)
-            close(fd);
-        remove(tmp);
-        return pf_error_set(err, PF_EIO, path, 0, "cannot write %s: %s", tmp, strerror(e));
-    }
-    close(fd);
-    if (rename(tmp, path) != 0) {
-        int e = errno;
-        remove(tmp);
-        return pf_error_set(err, PF_EIO, path, 0, "cannot rename %s into place: %s", tmp, strerror(e));
-    }
-    int e = pf_image_sync_dir(path);
-    if (e)
-        return pf_error_set(err, PF_EIO, path, 0, "cannot sync the directory of %s: %s", path, strerror(e));
-    return PF_OK;
+    return pf_file_commit_closed(tmp, path, err);
 }
 
 int pf_image_read_hdr(pf_image_t *img, const char *path, pf_error_t *err)

@@ -19,7 +19,7 @@
  *
  * No shared state: any thread may call any function on distinct images. */
 #include "image/image.h"
-#include "image/sync.h"
+#include "base/atomicfile.h"
 
 #include <errno.h>
 #include <math.h>
@@ -96,66 +96,8 @@ size_t pf_image_count_bad(const pf_image_t *img, size_t *negative)
 
 /* ---- atomic output -------------------------------------------------------- */
 
-/* "PATH.tmp" in a fresh allocation, or NULL when out of memory. */
-static char *s_tmp_path(const char *path)
-{
-    size_t n = strlen(path);
-    char *tmp = malloc(n + sizeof ".tmp");
-    if (tmp) {
-        memcpy(tmp, path, n);
-        memcpy(tmp + n, ".tmp", sizeof ".tmp");
-    }
-    return tmp;
-}
-
-int pf_image_sync_dir(const char *path)
-{
-    const char *slash = strrchr(path, '/');
-    char dir[4096];
-    if (!slash)
-        snprintf(dir, sizeof dir, ".");
-    else if (slash == path)
-        snprintf(dir, sizeof dir, "/");
-    else if ((size_t)(slash - path) < sizeof dir)
-        snprintf(dir, sizeof dir, "%.*s", (int)(slash - path), path);
-    else
-        return ENAMETOOLONG;
-    int fd = open(dir, O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-    if (fd < 0)
-        return errno;
-    int e = fsync(fd) == 0 || errno == EINVAL ? 0 : errno;
-    close(fd);
-    return e;
-}
-
-/* Closes fp and renames tmp over path. On any failure tmp is removed, err is
- * filled and a negative status returned. fclose is checked because it is
- * where a buffered write first reports a full disk. */
-static int s_commit(FILE *fp, const char *tmp, const char *path, pf_error_t *err)
-{
-    /* The data reaches the disk before the name does: fsync the file, rename
-     * it, fsync the directory. */
-    if (fflush(fp) != 0 || fsync(fileno(fp)) != 0) {
-        int e = errno;
-        fclose(fp);
-        remove(tmp);
-        return pf_error_set(err, PF_EIO, path, 0, "cannot write %s: %s", tmp, strerror(e));
-    }
-    if (fclose(fp) != 0) {
-        int e = errno;
-        remove(tmp);
-        return pf_error_set(err, PF_EIO, path, 0, "cannot write %s: %s", tmp, strerror(e));
-    }
-    if (rename(tmp, path) != 0) {
-        int e = errno;
-        remove(tmp);
-        return pf_error_set(err, PF_EIO, path, 0, "cannot rename %s into place: %s", tmp, strerror(e));
-    }
-    int e = pf_image_sync_dir(path);
-    if (e)
-        return pf_error_set(err, PF_EIO, path, 0, "cannot sync the directory of %s: %s", path, strerror(e));
-    return PF_OK;
-}
+/* The writers go through base/atomicfile.h: PATH.tmp, fsync, rename, fsync
+ * of the directory. */
 
 /* ---- PNG ------------------------------------------------------------------ */
 
@@ -209,7 +151,7 @@ int pf_image_write_png(const pf_image_t *img, const char *path, float exposure, 
 
     const double scale = exp2((double)exposure);
     const size_t w = (size_t)img->width;
-    char *tmp = s_tmp_path(path);
+    char *tmp = pf_file_tmp_path(path);
     unsigned char *row = malloc(w * 3);
     if (!tmp || !row) {
         free(tmp);
@@ -265,7 +207,7 @@ int pf_image_write_png(const pf_image_t *img, const char *path, float exposure, 
     png_destroy_write_struct(&png, &info);
     free(row);
 
-    int st = s_commit(fp, tmp, path, err);
+    int st = pf_file_commit(fp, tmp, path, err);
     free(tmp);
     return st;
 }
@@ -293,7 +235,7 @@ int pf_image_write_pfm(const pf_image_t *img, const char *path, pf_error_t *err)
         return pf_error_set(err, PF_EINVAL, path, 0, "cannot write an empty image");
 
     const size_t w = (size_t)img->width;
-    char *tmp = s_tmp_path(path);
+    char *tmp = pf_file_tmp_path(path);
     unsigned char *row = malloc(w * 12);
     if (!tmp || !row) {
         free(tmp);
@@ -325,7 +267,7 @@ int pf_image_write_pfm(const pf_image_t *img, const char *path, pf_error_t *err)
         free(tmp);
         return st;
     }
-    int st = s_commit(fp, tmp, path, err);
+    int st = pf_file_commit(fp, tmp, path, err);
     free(tmp);
     return st;
 }
