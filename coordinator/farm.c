@@ -69,8 +69,8 @@ static int s_photon_blobs(pf_fm_photons_t *p)
     int rc = pf_sceneblob_write(p->scene, &sb);
     if (rc == PF_OK) {
         p->scene_hash = pf_hash_bytes(PF_HASH_INIT, sb.data, sb.len);
-        rc = pf_mapfile_write(p->pass ? &p->next : &p->frame.maps, p->scene_hash, pf_settings_hash(&p->settings),
-                              &mb);
+        rc = pf_mapfile_write(p->into_next ? &p->next : &p->frame.maps, p->scene_hash,
+                              pf_settings_hash(&p->settings), &mb);
         p->maps_hash = pf_hash_bytes(PF_HASH_INIT, mb.data, mb.len);
         if (rc)
             pf_error_set(&p->err, rc, NULL, 0, "cannot serialize the photon maps: %s", pf_strerror(rc));
@@ -92,6 +92,17 @@ static int s_photon_blobs(pf_fm_photons_t *p)
  * p->next: the frame's maps are the pass being gathered. */
 static void s_photon_pass_next(pf_fm_photons_t *p)
 {
+    pf_budget_t *b = p->budget;
+    if (b && !(b->photon_s_per_photon > 0.0)) {
+        /* A resumed render: the calibration the first pass would have made. */
+        pf_settings_t cal = p->base;
+        p->rc = pf_budget_plan_photons(b, &p->frame, &cal);
+        if (p->rc == PF_OK && !p->given && pf_budget_plan_pass_photons(b, p->pass, &p->settings)) {
+            p->no_pass = 1;
+            return;
+        }
+    }
+    p->into_next = 1;
     double t0 = pf_now();
     pf_photon_maps_free(&p->next);
     p->rc = pf_photon_pass(p->scene, p->frame.accel, p->frame.lights, &p->settings, &p->next, &p->stats);
@@ -146,7 +157,7 @@ static void *s_photon_thread(void *arg)
     pf_fm_photons_t *p = arg;
     p->rc = p->frame.accel ? PF_OK : pf_frame_open(&p->frame, p->scene, &p->err);
     if (p->rc == PF_OK)
-        (p->pass ? s_photon_pass_next : s_photon_pass)(p);
+        (p->pass || p->given ? s_photon_pass_next : s_photon_pass)(p);
     if (p->rc == PF_OK && !p->no_pass)
         p->rc = s_photon_blobs(p);
     __atomic_store_n(&p->done, 1, __ATOMIC_RELEASE);
@@ -406,12 +417,24 @@ static int s_start_local_workers(pf_fm_t *f, pf_error_t *err)
 static int s_start_photons(pf_fm_t *f, const pf_scene_t *scene, int pass, const pf_settings_t *s, unsigned terms,
                            pf_error_t *err)
 {
+    f->ph.given = 0;
+    f->ph.into_next = 0;
     if (scene) {
         f->ph.scene = scene;
         f->ph.base = *s;
         f->ph.budget = f->o->budget;
         f->ph.terms = terms;
         f->ph.progressive = pf_fm_progressive(f);
+        if (f->resumed_pass >= 0 && (f->resumed.ntiles > 0 || f->resumed_pass > 0)) {
+            /* Resuming: the pass under way, with its settings as they were
+             * planned when it has tiles done, else planned afresh. */
+            pass = f->resumed_pass;
+            f->ph.given = f->resumed.ntiles > 0;
+            if (f->ph.given)
+                f->ph.settings = f->resumed.pass;
+            else if (pf_fm_pass_plan(f, pass, &f->ph.settings) && f->o->budget && f->o->budget->photon_s_per_photon > 0)
+                return pf_error_set(err, PF_ETIMEOUT, NULL, 0, "no pass fits in the time limit");
+        }
     } else {
         f->ph.settings = *s;
     }
@@ -443,15 +466,20 @@ static int s_on_photons_done(pf_fm_t *f, pf_error_t *err)
     pf_progress_end(&f->bar);
     if (f->ph.no_pass)
         return PF_OK; /* the caller ends the render */
-    if (f->ph.pass > 0) {
+    if (f->ph.into_next) {
         /* The pass traced beside the last one begins: its maps become the
          * frame's (the verification renders read them), its spp is planned
-         * for the time it now has. */
+         * for the time it now has (not a resumed pass's: its tiles done
+         * have theirs). */
         pf_frame_drop_maps(&f->ph.frame);
         f->ph.frame.maps = f->ph.next;
         memset(&f->ph.next, 0, sizeof f->ph.next);
         f->frame_readied = 0;
-        if (f->o->budget) {
+        if (f->o->budget && !f->ph.given) {
+            if (!(f->o->budget->pass_spp_s > 0.0)) { /* resumed: the probe needs the frame ready */
+                pf_frame_ready(&f->ph.frame);
+                f->frame_readied = 1;
+            }
             pf_budget_photons_done(f->o->budget, f->ph.photon_s,
                                    f->ph.settings.photons + f->ph.frame.maps.caustic_emitted);
             pf_budget_plan_pass_spp(f->o->budget, &f->ph.frame, f->ph.terms, f->ph.settings.threads, f->ph.pass,
@@ -461,6 +489,11 @@ static int s_on_photons_done(pf_fm_t *f, pf_error_t *err)
     f->cur = f->ph.settings;
     f->cur_pass = f->ph.pass;
     f->job = f->ph.job;
+    if (f->ph.pass == f->resumed_pass) {
+        int rc = pf_fm_resume_tiles(f, err);
+        if (rc != PF_OK)
+            return rc;
+    }
     sum->photons = f->ph.stats;
     sum->photons_total += f->ph.settings.photons + f->ph.frame.maps.caustic_emitted;
     if (f->ph.pass == 0)
@@ -578,6 +611,8 @@ static void s_note_progress(pf_fm_t *f, int alive)
 static int s_pass_turn(pf_fm_t *f, volatile int *stop, pf_error_t *err)
 {
     int stopped = stop && *stop;
+    if (stopped && f->job_ready)
+        pf_fm_checkpoint(f, 1); /* the tiles done, before a cut adds them to the sums */
     if (!pf_fm_progressive(f)) {
         if (stopped)
             return pf_error_set(err, PF_EINTERRUPTED, NULL, 0, "interrupted");
@@ -585,6 +620,7 @@ static int s_pass_turn(pf_fm_t *f, volatile int *stop, pf_error_t *err)
     }
     if (f->job_ready && f->L.ndone == f->L.nt) {
         pf_fm_pass_whole(f);
+        pf_fm_checkpoint(f, 1);
         if (!pf_fm_pass_more(f, stop)) {
             f->sum->interrupted = stopped;
             return 1;
@@ -651,8 +687,10 @@ static int s_event_loop(pf_fm_t *f, volatile int *stop, pf_error_t *err)
         s_tick(f);
         pf_fm_verify_tick(f);
         pf_fm_evict_pending(f);
-        if (f->job_ready)
+        if (f->job_ready) {
             pf_fm_lease_all(f);
+            pf_fm_checkpoint(f, 0);
+        }
         int alive = s_count_alive(f);
         if (alive)
             f->no_worker_since = pf_now();
@@ -749,6 +787,7 @@ static void s_free(pf_fm_t *f)
     pf_leases_free(&f->L);
     pf_registry_free(&f->reg);
     pf_accum_free(&f->acc);
+    pf_ckpt_free(&f->resumed);
 }
 
 int pf_farm_render(const pf_scene_t *scene, const pf_settings_t *settings, unsigned terms, const pf_farm_opts_t *opts,
@@ -777,6 +816,8 @@ int pf_farm_render(const pf_scene_t *scene, const pf_settings_t *settings, unsig
     if (rc == PF_OK && pf_fm_progressive(&f) && pf_accum_init(&f.acc, s.width, s.height) != PF_OK)
         rc = pf_error_set(err, PF_ENOMEM, NULL, 0, "cannot allocate the passes' %dx%d sums", s.width, s.height);
     if (rc == PF_OK)
+        rc = pf_fm_resume_load(&f, scene, &s, terms, err);
+    if (rc == PF_OK)
         rc = s_open_socket(&f, err);
     if (rc == PF_OK)
         rc = s_start_local_workers(&f, err);
@@ -788,6 +829,8 @@ int pf_farm_render(const pf_scene_t *scene, const pf_settings_t *settings, unsig
         s_sum_up(&f);
     }
     s_free(&f);
+    if (rc == PF_OK && !sum->interrupted && opts->checkpoint && remove(opts->checkpoint) != 0 && errno != ENOENT)
+        pf_warn("cannot remove the checkpoint %s: %s", opts->checkpoint, strerror(errno));
     if (rc != PF_OK) {
         pf_image_free(img);
     } else {

@@ -36,6 +36,11 @@ typedef struct pf_farm_opts {
                                  on the coordinator (NULL: none) */
     int passes;               /* progressive passes (job.h): each a job of its own maps, the image their running
                                  mean (0 or 1: one pass, unless a time limit) */
+    const char *checkpoint;   /* where the render's progress is kept (checkpoint.h): after each pass and every
+                                 PF_FARM_CKPT_S seconds while tiles come in; removed when the render ends well.
+                                 NULL: none */
+    int resume;               /* go on from the checkpoint (none there: start afresh; another render's: an
+                                 error) */
     /* Budgets against hostile peers (docs/farm.md, "Hostile peers"). */
     int max_workers;          /* registry slots; dead ones are reused (default 1024) */
     double hello_rate;        /* HELLOs served per second, all peers together; the excess is dropped (default 100;
@@ -55,6 +60,9 @@ typedef struct pf_farm_opts {
 } pf_farm_opts_t;
 
 void pf_farm_opts_default(pf_farm_opts_t *o);
+
+/* Seconds between checkpoints of a pass's tiles. */
+#define PF_FARM_CKPT_S 5.0
 
 typedef struct pf_farm_worker_stat {
     char name[64];

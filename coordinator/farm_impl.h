@@ -12,6 +12,7 @@
 
 #include "coordinator/accum.h"
 #include "coordinator/budget.h"
+#include "coordinator/checkpoint.h"
 #include "coordinator/leases.h"
 #include "coordinator/progress.h"
 #include "coordinator/registry.h"
@@ -38,6 +39,8 @@ typedef struct pf_fm_photons {
      * begins (pf_fm_pass_begin); photon_s is the trace's wall time. */
     pf_photon_maps_t next;
     double photon_s;
+    int given;              /* the settings are given (a resumed pass): nothing is planned */
+    int into_next;          /* the thread traced into next (every pass but a fresh first one) */
     pf_budget_t *budget;
     unsigned terms;
     uint64_t job;
@@ -105,6 +108,14 @@ typedef struct pf_fm {
     double pass_start;
     int cur_pass;
     pf_settings_t cur;
+    /* Checkpoints (farm_pass.c): the render's key, when the last was
+     * written and how many tiles it held; the checkpoint resumed from, its
+     * tiles put in when its pass begins (resumed_pass: that pass, -1). */
+    uint64_t ckpt_key;
+    double ckpt_at;
+    int ckpt_done;
+    pf_ckpt_t resumed;
+    int resumed_pass;
 } pf_fm_t;
 
 /* farm_peers.c */
@@ -160,6 +171,17 @@ int pf_fm_pass_reset(pf_fm_t *f, pf_error_t *err);
 int pf_fm_pass_plan(pf_fm_t *f, int pass, pf_settings_t *s);
 /* The running mean into f->img. */
 void pf_fm_pass_resolve(pf_fm_t *f);
+/* Writes the checkpoint (if the render keeps one): the passes done and the
+ * tiles of the pass under way; `force`: now, else only when PF_FARM_CKPT_S
+ * have passed and tiles came in. Logs (once) when it cannot. */
+void pf_fm_checkpoint(pf_fm_t *f, int force);
+/* The checkpoint to resume from (opts->resume): read and checked into
+ * f->resumed, its passes' sums into f->acc; resumed_pass set. 0 (also when
+ * there is none: a fresh start), or a status with err filled. */
+int pf_fm_resume_load(pf_fm_t *f, const pf_scene_t *scene, const pf_settings_t *s, unsigned terms, pf_error_t *err);
+/* Puts the resumed tiles into the image and marks them done, as the
+ * resumed pass begins. */
+int pf_fm_resume_tiles(pf_fm_t *f, pf_error_t *err);
 
 /* verify.c */
 

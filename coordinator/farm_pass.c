@@ -10,6 +10,7 @@
  * Called from the event loop's thread. */
 #include <math.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "base/log.h"
@@ -132,4 +133,97 @@ int pf_fm_pass_plan(pf_fm_t *f, int pass, pf_settings_t *s)
 void pf_fm_pass_resolve(pf_fm_t *f)
 {
     f->sum->unreached = pf_accum_resolve(&f->acc, f->img);
+}
+
+void pf_fm_checkpoint(pf_fm_t *f, int force)
+{
+    const char *path = f->o->checkpoint;
+    if (!path || (!force && (f->L.ndone == f->ckpt_done || pf_now() - f->ckpt_at < PF_FARM_CKPT_S)))
+        return;
+    uint32_t(*rects)[4] = malloc((size_t)(f->L.nt ? f->L.nt : 1) * sizeof *rects);
+    if (!rects)
+        return;
+    int n = 0, passes_done = f->cur_pass;
+    pf_settings_t pass = f->cur;
+    if (force && f->job_ready && f->L.ndone == f->L.nt) {
+        /* A whole pass: the next one is planned afresh on resuming. */
+        passes_done = f->cur_pass + 1;
+        pass = f->ph.base;
+        pass.pass = passes_done;
+        pass.seed = pf_pass_seed(f->ph.base.seed, passes_done);
+    } else {
+        for (int i = 0; i < f->L.nt; i++) {
+            const pf_tile_t *t = &f->L.t[i];
+            if (t->state == PF_T_DONE) {
+                rects[n][0] = t->x0;
+                rects[n][1] = t->y0;
+                rects[n][2] = t->w;
+                rects[n][3] = t->h;
+                n++;
+            }
+        }
+    }
+    pf_error_t err = { { 0 } };
+    int rc = pf_ckpt_write(path, f->ckpt_key, passes_done, pf_fm_progressive(f) ? &f->acc : NULL, &pass, f->img,
+                           (const uint32_t(*)[4])rects, n, &err);
+    free(rects);
+    f->ckpt_at = pf_now();
+    f->ckpt_done = f->L.ndone;
+    if (rc != PF_OK && pf_fm_may_log(&f->bad_log, 0.1))
+        pf_warn("checkpoint not written: %s", err.msg);
+}
+
+int pf_fm_resume_load(pf_fm_t *f, const pf_scene_t *scene, const pf_settings_t *s, unsigned terms, pf_error_t *err)
+{
+    f->resumed_pass = -1;
+    f->ckpt_key = pf_ckpt_key(scene, s, terms, f->o->passes, f->o->budget != NULL, f->ts);
+    if (!f->o->resume || !f->o->checkpoint)
+        return PF_OK;
+    pf_error_t e = { { 0 } };
+    int rc = pf_ckpt_read(f->o->checkpoint, f->ckpt_key, s->width, s->height, &f->resumed, &e);
+    if (rc == PF_EIO) {
+        pf_info("no checkpoint to resume from (%s): starting afresh", e.msg);
+        return PF_OK;
+    }
+    if (rc != PF_OK) {
+        *err = e;
+        return rc;
+    }
+    if (f->resumed.has_acc != pf_fm_progressive(f) || (!f->resumed.has_acc && f->resumed.passes_done > 0)) {
+        pf_ckpt_free(&f->resumed);
+        return pf_error_set(err, PF_EMISMATCH, f->o->checkpoint, 0, "the checkpoint is of another render");
+    }
+    if (f->resumed.has_acc) {
+        pf_accum_free(&f->acc);
+        f->acc = f->resumed.acc;
+        f->resumed.has_acc = 0;
+        memset(&f->resumed.acc, 0, sizeof f->resumed.acc);
+    }
+    f->resumed_pass = f->resumed.passes_done;
+    f->sum->passes = f->sum->passes_whole = f->resumed.passes_done;
+    pf_info("resuming from %s: %d pass%s done, %d tile%s of pass %d", f->o->checkpoint, f->resumed.passes_done,
+            f->resumed.passes_done == 1 ? "" : "es", f->resumed.ntiles, f->resumed.ntiles == 1 ? "" : "s",
+            f->resumed.passes_done + 1);
+    return PF_OK;
+}
+
+int pf_fm_resume_tiles(pf_fm_t *f, pf_error_t *err)
+{
+    for (int k = 0; k < f->resumed.ntiles; k++) {
+        const pf_ckpt_tile_t *c = &f->resumed.tiles[k];
+        int ti = -1;
+        for (int i = 0; i < f->L.nt && ti < 0; i++)
+            if (f->L.t[i].x0 == c->x0 && f->L.t[i].y0 == c->y0 && f->L.t[i].w == c->w && f->L.t[i].h == c->h)
+                ti = i;
+        if (ti < 0)
+            return pf_error_set(err, PF_EMISMATCH, f->o->checkpoint, 0, "a tile of the checkpoint is not a tile of "
+                                "this render");
+        for (uint32_t y = 0; y < c->h; y++)
+            memcpy(&f->img->rgb[3 * ((size_t)(c->y0 + y) * (size_t)f->img->width + c->x0)], &c->px[3 * (size_t)y * c->w],
+                   3 * (size_t)c->w * sizeof(float));
+        pf_leases_finish(&f->L, &f->reg, ti);
+    }
+    f->ckpt_done = f->L.ndone;
+    pf_ckpt_free(&f->resumed);
+    return PF_OK;
 }

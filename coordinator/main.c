@@ -91,6 +91,10 @@ static void s_usage(FILE *f)
             "                           returning wrong pixels is evicted and its tiles rendered again\n"
             "                           (0.02; 0: no checks)\n"
             "      --max-wait S         give up when no worker is connected for S seconds (0: never)\n"
+            "      --checkpoint FILE    keep the render's progress there (after each pass, and every 5 s\n"
+            "                           of tiles), removed when it ends well (OUTPUT.ckpt; none: no file)\n"
+            "      --resume             go on from the checkpoint after a crash: the same image, bit for\n"
+            "                           bit, as an uninterrupted render (none there: start afresh)\n"
             "      --worker-exe PATH    the worker program for --workers (default: beside photonfarm)\n"
             "\n"
             "  -q, --quiet              only errors\n"
@@ -210,7 +214,7 @@ enum {
     OPT_HDR = 256, OPT_SIZE, OPT_SPP, OPT_PHOTONS, OPT_CPHOTONS, OPT_GATHER, OPT_GFILTER, OPT_LSAMPLES, OPT_GK, OPT_CK, OPT_CR,
     OPT_DEPTH, OPT_THREADS, OPT_SEED, OPT_EXPOSURE, OPT_TERMS, OPT_WORKERS, OPT_BIND, OPT_MINW, OPT_CSECRET,
     OPT_CALLOW, OPT_TILE, OPT_HB, OPT_WATCHDOG, OPT_MAXWAIT, OPT_WEXE, OPT_TLIMIT, OPT_QUALITY, OPT_STRICT,
-    OPT_LEASE, OPT_STRIKES, OPT_VERIFY, OPT_PASSES,
+    OPT_LEASE, OPT_STRIKES, OPT_VERIFY, OPT_PASSES, OPT_CKPT, OPT_RESUME,
 };
 
 /* SIGINT and SIGTERM. The farm's event loop and the progressive passes poll
@@ -264,6 +268,7 @@ static const struct option s_render_opts[] = {
     { "quality", required_argument, 0, OPT_QUALITY }, { "strict", no_argument, 0, OPT_STRICT },
     { "lease-timeout", required_argument, 0, OPT_LEASE }, { "max-strikes", required_argument, 0, OPT_STRIKES },
     { "verify", required_argument, 0, OPT_VERIFY }, { "passes", required_argument, 0, OPT_PASSES },
+    { "checkpoint", required_argument, 0, OPT_CKPT }, { "resume", no_argument, 0, OPT_RESUME },
     { 0, 0, 0, 0 },
 };
 
@@ -287,6 +292,8 @@ typedef struct s_render_args {
     int workers;
     float time_limit;
     int passes; /* --passes: progressive passes (0: one, or as many as a time limit allows) */
+    const char *checkpoint; /* --checkpoint (farm renders; NULL: OUTPUT.ckpt; "none": none) */
+    char ckptbuf[1100];
     const pf_quality_t *quality;
     int strict; /* --strict: loader warnings are errors */
 } s_render_args;
@@ -360,6 +367,8 @@ static int s_parse_render_args(int argc, char **argv, s_render_args *a)
         case OPT_WEXE: farm->worker_exe = optarg; break;
         case OPT_TLIMIT: bad = s_parse_float(optarg, &a->time_limit) || a->time_limit <= 0 || a->time_limit > 1e7; break;
         case OPT_PASSES: bad = s_parse_int(optarg, 1, PF_MAX_PASSES, &a->passes); break;
+        case OPT_CKPT: a->checkpoint = optarg; break;
+        case OPT_RESUME: farm->resume = 1; break;
         case OPT_QUALITY: bad = (a->quality = s_find_quality(optarg)) == NULL; break;
         case OPT_STRICT: a->strict = 1; break;
         case 'q': pf_log_set_level(PF_LOG_ERROR); break;
@@ -383,6 +392,11 @@ static int s_parse_render_args(int argc, char **argv, s_render_args *a)
         return EXIT_USAGE;
     }
     a->path = argv[optind];
+    if (farm->resume && a->workers == 0 && !farm->bind) {
+        fprintf(stderr, "photonfarm render: --resume continues a farm render (--workers N or --bind); a render in "
+                        "this process keeps no checkpoint\n");
+        return EXIT_USAGE;
+    }
     if (!a->out) {
         s_default_output(a->path, a->outbuf, sizeof a->outbuf);
         a->out = a->outbuf;
@@ -475,6 +489,12 @@ static int s_render_farm(pf_scene_t **scene_p, s_render_args *a, pf_budget_t *bu
     farm->show_progress = 1;
     farm->budget = a->time_limit > 0 ? budget : NULL;
     farm->passes = a->passes;
+    if (!a->checkpoint) {
+        snprintf(a->ckptbuf, sizeof a->ckptbuf, "%s.ckpt", a->out);
+        farm->checkpoint = a->ckptbuf;
+    } else {
+        farm->checkpoint = strcmp(a->checkpoint, "none") ? a->checkpoint : NULL;
+    }
     s->threads = 0;
     s_catch_signals(s_on_signal);
     signal(SIGPIPE, SIG_IGN);
@@ -483,7 +503,9 @@ static int s_render_farm(pf_scene_t **scene_p, s_render_args *a, pf_budget_t *bu
     pf_scene_destroy(scene_p);
     if (rc != PF_OK) {
         pf_error("render failed: %s", err->msg);
-        return rc == PF_EINTERRUPTED ? 128 + (s_interrupted ? (int)s_interrupted : SIGINT) : EXIT_RENDER;
+        if (rc == PF_EINTERRUPTED)
+            return 128 + (s_interrupted ? (int)s_interrupted : SIGINT);
+        return rc == PF_EMISMATCH || rc == PF_EPARSE ? EXIT_INPUT : EXIT_RENDER;
     }
     pf_farm_summary_log(&fs);
     sum->bad_pixels = fs.bad_pixels;

@@ -29,7 +29,11 @@
 #  9. --exit-on-bye workers leave at the end of the job; a long-lived worker
 #     serves a second coordinator on the same port;
 # 10. progressive passes (--passes 4): two cluster workers, one killed -9
-#     in the second pass; the image is the in-process one's, bit for bit.
+#     in the second pass; the image is the in-process one's, bit for bit;
+# 11. kill -9 of the coordinator, then --resume from its checkpoint: mid-way
+#     through a one-pass render's tiles, and between progressive passes; the
+#     images are the uninterrupted ones, bit for bit; a checkpoint of other
+#     settings is refused (exit 3).
 #
 # Every wait is bounded (poll loops with deadlines, `timeout`), every process
 # the script starts is recorded and killed (kill -9) on exit, and workers carry
@@ -616,11 +620,78 @@ t10() {
     stop "$wa" "$wb"
 }
 
+# ---- 11. checkpoint and --resume ------------------------------------------------------
+
+# resume_test NAME SETTINGS_VAR REF WAIT: a cluster coordinator and two
+# workers; the coordinator is killed (-9) once WAIT (a shell command) says
+# so, then a second one with --resume on the same checkpoint finishes.
+resume_test() {
+    local n=$1 set=$2 ref=$3 wait=$4 port coord wa wb
+    port=$(free_port)
+    coordinator "${n}_1" "$SPHERES" "$port" "$set" --checkpoint "$T/$n.ckpt"
+    coord=$LASTPID
+    worker "${n}_a" "$port"
+    wa=$LASTPID
+    worker "${n}_b" "$port"
+    wb=$LASTPID
+    if eval "$wait" && kill -0 "$coord" 2>/dev/null; then
+        kill -9 "$coord"
+        wait "$coord" 2>/dev/null
+        ok "11: $n: the coordinator killed (-9) mid-render, a checkpoint on disk"
+    else
+        bad "11: $n: no checkpoint while the render ran"
+    fi
+    check "11: $n: the killed coordinator wrote no image" test ! -e "$T/${n}_1.pfm"
+    local -n sref=$set
+    start "${n}_2" "$PF" render "$SPHERES" -o "$T/${n}_2.png" --hdr "$T/${n}_2.pfm" "${sref[@]}" "${FARM[@]}" \
+        --bind "tcp://127.0.0.1:$port" --workers 0 --max-wait 60 --checkpoint "$T/$n.ckpt" --resume
+    coord=$LASTPID
+    wait_exit "$coord" 120
+    if completed "11: $n: --resume finishes the render" "$T/${n}_2.err"; then
+        check "11: $n: the resumed image is bit-identical to the uninterrupted one" same "$T/${n}_2.pfm" "$ref"
+        check "11: $n: the log says what was resumed" logged "$T/${n}_2.err" "resuming from .*$n.ckpt"
+        check "11: $n: the checkpoint is removed at the end" test ! -e "$T/$n.ckpt"
+    fi
+    unset -n sref
+    stop "$wa" "$wb"
+}
+
+# ckpt_tiles FILE: the checkpoint exists (written at the first tile, then
+# every 5 s), and a moment more, so that tiles are in flight.
+ckpt_tiles() {
+    local i
+    for i in $(seq 600); do
+        [ -s "$1" ] && break
+        sleep 0.1
+    done
+    [ -s "$1" ] && sleep 0.5
+}
+
+t11() {
+    echo "# 11. kill -9 of the coordinator and --resume"
+    resume_test ckpt_tiles BIG "$T/ref_big.pfm" "ckpt_tiles '$T/ckpt_tiles.ckpt'"
+    resume_test ckpt_pass PROG "$T/ref_prog.pfm" "wait_log '$T/ckpt_pass_1.err' 'pass 2: ' 60 && sleep 0.3"
+    # A checkpoint of other settings is refused, not used.
+    local port
+    port=$(free_port)
+    "$PF" render "$SPHERES" -o "$T/ck_x.png" "${SMALL[@]}" --bind "tcp://127.0.0.1:$port" --workers 0 --max-wait 1 \
+        --checkpoint "$T/ck_bad.ckpt" >/dev/null 2>&1 </dev/null &
+    local c=$!
+    sleep 1
+    wait "$c" 2>/dev/null
+    printf 'PFCK\001\000\000\000garbage' >"$T/ck_bad.ckpt"
+    timeout 60 "$PF" render "$SPHERES" -o "$T/ck_x.png" "${SMALL[@]}" --bind "tcp://127.0.0.1:$port" --workers 0 \
+        --max-wait 5 --checkpoint "$T/ck_bad.ckpt" --resume >"$T/ck_bad.out" 2>"$T/ck_bad.err"
+    rc=$?
+    check "11: a malformed checkpoint is refused with exit 3 (exit $rc)" eq "$rc" 3
+    check "11: ... naming the file" has "$T/ck_bad.err" "ck_bad.ckpt"
+}
+
 # ---- run ----------------------------------------------------------------------------
 
 if references; then
     # PF_FARM_ONLY="2 5" runs only those tests (for debugging).
-    for n in ${PF_FARM_ONLY:-1 2 3 4 5 6 7 8 9 10}; do
+    for n in ${PF_FARM_ONLY:-1 2 3 4 5 6 7 8 9 10 11}; do
         "t$n"
     done
 fi
