@@ -762,11 +762,10 @@ static void s_free(pf_fm_t *f)
     if (f->npids)
         pf_spawn_stop_all(f->pids, f->npids, 3.0);
     if (f->ph_started) {
-        /* The photon pass cannot be cancelled midway (it checks no flag);
-         * it ends on its own. Say so rather than wait silently. */
+        /* A signal stops the photon pass within a block of photons
+         * (pf_photon_set_cancel); otherwise it ends on its own. */
         if (!__atomic_load_n(&f->ph.done, __ATOMIC_ACQUIRE))
-            pf_warn("stopping: the photon pass cannot be interrupted; exiting when it ends (%.0f s in so far)",
-                    pf_now() - f->t0);
+            pf_debug("stopping: waiting for the photon pass to end (%.0f s in so far)", pf_now() - f->t0);
         pthread_join(f->phtid, NULL);
     }
     if (f->sock)

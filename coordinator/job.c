@@ -157,7 +157,9 @@ static int s_progressive(pf_frame_t *frame, const pf_settings_t *base, unsigned 
         if (b && pf_budget_plan_pass_photons(b, pass, &s))
             break; /* no pass fits in the time left */
         rc = s_photons(frame, &s, run->show_progress, sum, err);
-        if (rc != PF_OK)
+        if (rc == PF_EINTERRUPTED && run->stop && *run->stop)
+            rc = PF_OK; /* the passes done make the image */
+        if (rc != PF_OK || (run->stop && *run->stop))
             break;
         if (b) {
             pf_budget_photons_done(b, pf_now() - t0, s.photons + frame->maps.caustic_emitted);

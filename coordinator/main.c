@@ -241,6 +241,9 @@ static void s_on_signal_exit(int sig)
 
 static void s_catch_signals(void (*handler)(int))
 {
+    /* With a handler that only sets the flag, a photon pass under way
+     * stops too (within a block of photons). */
+    pf_photon_set_cancel(handler == s_on_signal ? &s_interrupted : NULL);
     struct sigaction sa;
     memset(&sa, 0, sizeof sa);
     sa.sa_handler = handler;

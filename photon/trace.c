@@ -39,6 +39,12 @@
 
 #define PF_PHOTON_BLOCK 4096
 
+static volatile int *s_cancel;
+
+void pf_photon_set_cancel(volatile int *flag) { s_cancel = flag; }
+
+static int s_cancelled(void) { return s_cancel && *s_cancel; }
+
 typedef struct s_buf {
     pf_photon_t *p;
     size_t n, cap;
@@ -188,13 +194,18 @@ static int s_trace_map(const s_ctx *c, uint64_t seed, uint64_t emitted, int caus
         pf_accel_thread_init();
 #pragma omp for schedule(dynamic, 1)
         for (size_t b = 0; b < nblocks; b++) {
+            if (s_cancelled()) {
+#pragma omp atomic write
+                failed = PF_EINTERRUPTED;
+                continue;
+            }
             uint64_t lo = (uint64_t)b * PF_PHOTON_BLOCK;
             uint64_t hi = lo + PF_PHOTON_BLOCK < emitted ? lo + PF_PHOTON_BLOCK : emitted;
             for (uint64_t i = lo; i < hi; i++) {
                 int r = s_trace(c, seed, i, emitted, caustic, &bufs[b]);
                 if (r < 0) {
 #pragma omp atomic write
-                    failed = 1;
+                    failed = PF_ENOMEM;
                     break;
                 }
                 bad += (uint64_t)r;
@@ -219,7 +230,7 @@ static int s_trace_map(const s_ctx *c, uint64_t seed, uint64_t emitted, int caus
         free(bufs[b].p);
     free(bufs);
     if (!all)
-        return PF_ENOMEM;
+        return failed ? failed : PF_ENOMEM;
     *out = all;
     *count = total;
     *rejected += bad;
@@ -273,6 +284,11 @@ int pf_photon_pass(const pf_scene_t *scene, const pf_accel_t *accel, const pf_li
         free(cp);
         return rc;
     }
+    if (s_cancelled()) {
+        free(gp);
+        free(cp);
+        return PF_EINTERRUPTED;
+    }
     stats->global_stored = gn;
     stats->caustic_stored = cn;
     maps->global = pf_kdtree_build(&gp, gn);
@@ -287,7 +303,9 @@ int pf_photon_pass(const pf_scene_t *scene, const pf_accel_t *accel, const pf_li
      * diffuse point sees a lit one, the final gather would find nothing, and
      * the irradiance it reads need not be computed (pf_photon_skip_gather). */
     stats->gather_skipped = settings->photons > 0 && gn > 0 && stats->indirect_stored == 0;
-    if (stats->gather_skipped) {
+    if (s_cancelled()) {
+        rc = PF_EINTERRUPTED;
+    } else if (stats->gather_skipped) {
         pf_photon_t *none = malloc(sizeof *none); /* an empty tree still owns an array */
         maps->irradiance = none ? pf_kdtree_build(&none, 0) : NULL;
         rc = maps->irradiance ? PF_OK : PF_ENOMEM;

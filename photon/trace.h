@@ -32,6 +32,12 @@ size_t pf_irradiance_points_stride(size_t stored, const pf_settings_t *settings)
 int pf_photon_pass(const pf_scene_t *scene, const pf_accel_t *accel, const pf_lights_t *lights,
                    const pf_settings_t *settings, pf_photon_maps_t *maps, pf_photon_stats_t *stats);
 
+/* A flag that, once non-zero (a signal handler sets it), stops a photon
+ * pass under way: tracing stops within a block of photons per thread and the
+ * pass returns PF_EINTERRUPTED before its next stage (kd-trees, irradiance).
+ * Process-wide; NULL (the default): never. */
+void pf_photon_set_cancel(volatile int *flag);
+
 /* When the pass found no diffuse-to-diffuse transport (stats->gather_skipped),
  * sets s->gather to 0 and logs the skip; the final gather would add exactly
  * nothing. Call before the settings go to the renderer. */

@@ -507,6 +507,13 @@ check "... and writes no image" test ! -e "$T/sig.png"
 sig_run TERM 2 "${SLOW[@]}" --workers 1
 check "SIGTERM during a farm render exits 143" rc_is 143
 check "... and says it was interrupted" err_has "interrupted"
+# A photon pass stops within a block of photons: a long first one, cut.
+t0=$(date +%s.%N)
+sig_run INT 2 render "$SCENES/cornell-spheres/scene.json" --size 32x32 --spp 1 --passes 2 --photons 50000000 \
+    --caustic-photons 100 --threads 2 -o "$T/sigph.png"
+wall=$(awk -v a="$t0" -v b="$(date +%s.%N)" 'BEGIN { printf "%.2f", b - a - 2 }')
+check "SIGINT during a photon pass exits 130" rc_is 130
+check "... within a second of the signal (took $wall s)" within 0.5
 # Progressive passes stop at the next tile and write the passes done.
 PROG=(render "$SCENES/cornell-spheres/scene.json" --size 96x96 --time-limit 600 --threads 2 -o "$T/sigp.png" --hdr "$T/sigp.pfm")
 t0=$(date +%s.%N)
