@@ -18,6 +18,7 @@
 #define S_RESERVE_SHARE 0.03
 #define S_SAFETY 0.85
 #define S_LAST_SAFETY 0.97
+#define S_MIN_TILES_S 0.3 /* the least time worth starting a last pass for */
 
 void pf_budget_init(pf_budget_t *b, double start, double limit_s, int render_threads, int tile)
 {
@@ -219,8 +220,10 @@ int pf_budget_plan_pass_photons(pf_budget_t *b, int pass, pf_settings_t *s)
         s->photons = each;
     if (s->caustic_photons && !b->fix_caustic)
         s->caustic_photons = each;
-    /* A pass needs its photons and at least one sample per pixel. */
-    double need = rate * (double)(s->photons + s->caustic_photons) + b->pass_fixed_s + b->pass_spp_s;
+    /* A pass needs its photons and time for some tiles: what does not fit
+     * is cut at the deadline, and the tiles done still count (unbiased), so
+     * a pass too short to finish beats leaving the time unused. */
+    double need = rate * (double)(s->photons + s->caustic_photons) + S_MIN_TILES_S;
     return pass > 0 && need > left;
 }
 

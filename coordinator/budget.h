@@ -106,10 +106,11 @@ double pf_budget_pass_seconds(const pf_budget_t *b, int pass);
 double pf_budget_tiles_deadline(const pf_budget_t *b);
 
 /* Sets s->photons and s->caustic_photons (those not fixed on the command
- * line, and not 0) for pass `pass`: PF_BUDGET_PHOTON_SHARE of its seconds
- * (less when fewer are left) at the measured rate. Needs
- * pf_budget_plan_photons's calibration first. 0 when a pass still fits in
- * the time left, 1 when none does (the render should stop). */
+ * line, and not 0) for pass `pass`: PF_BUDGET_PASS_PHOTON_SHARE of its
+ * seconds (less when fewer are left) at the measured rate. Needs
+ * pf_budget_plan_photons's calibration first. 0 when a pass (its photons
+ * and a few tiles: the rest is cut at the deadline) still fits in the time
+ * left, 1 when none does (the render should stop). */
 int pf_budget_plan_pass_photons(pf_budget_t *b, int pass, pf_settings_t *s);
 
 /* The photon pass of a pass took photon_s for `emitted` photons: the rate
