@@ -13,6 +13,7 @@
 #include "accel/accel.h"
 #include "base/log.h"
 #include "load/load.h"
+#include "photon/irradiance.h"
 #include "render/render.h"
 
 #include "scenes_gen.h"
@@ -356,6 +357,16 @@ static void s_thin_wall_gap(void)
         near++;
     }
     free(buf);
+    /* The same points from one thread, bit for bit (the visibility search
+     * depends on the point alone, not on the thread's previous point). */
+    pf_kdtree_t *one = NULL;
+    size_t stride = pf_irradiance_points_stride(pf_kdtree_size(global), &job.settings);
+    int rc = pf_irradiance_precompute(global, (int)stride, s.global_k, job.fr.maps.global_r2,
+                                      pf_pass_shrink2(job.settings.pass), job.fr.accel, 1, &one);
+    CHECK(rc == PF_OK && pf_kdtree_size(one) == pf_kdtree_size(irr) &&
+              memcmp(pf_kdtree_photons(one), q, pf_kdtree_size(irr) * sizeof *q) == 0,
+          "%s: the irradiance points differ between 1 and %d threads", what, job.settings.threads);
+    pf_kdtree_destroy(&one);
     double ratio = got / want, scale = (lit_a / (double)(near_a ? near_a : 1)) / (want / (double)(near ? near : 1));
     printf("%s: %zu irradiance points on the dim floor within their support of the wall read %.4f times the "
            "estimate from their side's photons (bound 1 +- 0.01; worst point %+.1f %%); the lit floor as near the "
