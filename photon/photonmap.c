@@ -434,8 +434,8 @@ static int s_seen(const pf_accel_t *accel, const s_near *near, pf_vec3 x, pf_vec
  * The estimate over the seen photons at x into *e and *r2 (which hold the
  * plain estimate's squared radius on entry); returns how many photons were
  * found hidden, 0 leaving *e and *r2 as they were. */
-static size_t s_seen_estimate(const pf_kdtree_t *map, const pf_accel_t *accel, const s_near *near, pf_vec3 x,
-                              pf_vec3 n, size_t kk, float max_r2, float shrink2, pf_vec3 *e, float *r2,
+static size_t s_seen_estimate(const pf_kdtree_t *map, const pf_accel_t *accel, s_near near, pf_vec3 x, pf_vec3 n,
+                              size_t kk, float max_r2, float shrink2, pf_vec3 *e, float *r2,
                               pf_pm_visible_scratch_t *vs)
 {
     const pf_photon_t *ph = pf_kdtree_photons(map);
@@ -450,12 +450,18 @@ static size_t s_seen_estimate(const pf_kdtree_t *map, const pf_accel_t *accel, c
         size_t c = pf_kdtree_radius(map, x, search, vs->found, vs->cap);
         if (c > vs->cap)
             break; /* too many to sort: the seen ones within `done` serve */
+        /* keys[0, tested) hold, sorted, the photons within done (all of
+         * them, tested); the new ones lie beyond it: sort only those. */
+        size_t m = tested;
         for (size_t i = 0; i < c; i++)
-            vs->keys[i] = s_knn_key(&vs->found[i]);
-        s_sort_keys(vs->keys, c);
+            if (vs->found[i].d2 > done || tested == 0)
+                vs->keys[m++] = s_knn_key(&vs->found[i]);
+        PF_DCHECK(m == c);
+        s_sort_keys(vs->keys + tested, m - tested);
+        c = m;
         for (; tested < c && seen < kk; tested++) {
             pf_knn_t f = s_knn_of_key(vs->keys[tested]);
-            if (s_seen(accel, near, x, n, &ph[f.index], sqrtf(f.d2), eps))
+            if (s_seen(accel, &near, x, n, &ph[f.index], sqrtf(f.d2), eps))
                 vs->visible[seen++] = vs->keys[tested];
             else
                 hidden++;
@@ -470,6 +476,10 @@ static size_t s_seen_estimate(const pf_kdtree_t *map, const pf_accel_t *accel, c
         float grow = 1.25f * (float)kk / (float)(seen ? seen : 1);
         grow = fminf(fmaxf(grow, 1.5f), 16.0f);
         search = search > 0.0f ? fminf(search * grow, max_r2) : max_r2;
+        /* The planes near the wider photons' segments too (else each of
+         * them would trace its ray). */
+        near.reach = 2.0f * sqrtf(search) * 1.001f;
+        near.n = pf_accel_near_planes(accel, x, near.reach + 4.0f * eps, vs->planes, PF_PM_VISIBLE_PLANES);
     }
     if (hidden == 0)
         return 0; /* nothing tested (the first search overflowed): the estimate stands */
@@ -535,6 +545,6 @@ pf_vec3 pf_pm_irradiance_seen(const pf_kdtree_t *map, const pf_accel_t *accel, p
         i++;
     if (i == cnt)
         return e;
-    s_seen_estimate(map, accel, &near, x, n, (size_t)k, max_r2, shrink2, &e, r2_out, vs);
+    s_seen_estimate(map, accel, near, x, n, (size_t)k, max_r2, shrink2, &e, r2_out, vs);
     return e;
 }
