@@ -274,9 +274,11 @@ static int s_key_cmp(const void *a, const void *b)
  * pf_pm_irradiance's rule, from the photons of q's own side of the wall
  * only (x > side_x, a plane inside the wall): the k - 1 nearest of them, those with
  * agreeing normals summed, over the disc of the k-th; or all within max_r2
- * over that disc. The radius used goes to *r_out. buf holds the map's size. */
+ * over that disc; that disc shrunk by shrink2 (a progressive pass's) keeps
+ * those within it. The unshrunk radius goes to *r_out. buf holds the map's
+ * size. */
 static double s_same_side_irradiance(const pf_kdtree_t *global, const pf_photon_t *q, float side_x, int k,
-                                     float max_r2, pf_knn_t *buf, double *r_out)
+                                     float max_r2, float shrink2, pf_knn_t *buf, double *r_out)
 {
     const pf_photon_t *ph = pf_kdtree_photons(global);
     pf_vec3 x = pf_photon_pos(q), n = pf_photon_normal(q);
@@ -292,12 +294,54 @@ static double s_same_side_irradiance(const pf_kdtree_t *global, const pf_photon_
         r2 = buf[k - 1].d2;
         c = (size_t)k - 1;
     }
-    double s = 0.0;
-    for (size_t i = 0; i < c; i++)
-        if (pf_photon_normal_agrees(&ph[buf[i].index], n, PF_NORMAL_AGREE))
-            s += ph[buf[i].index].power[1];
     *r_out = sqrt(r2);
-    return s / (M_PI * r2);
+    double rs2 = shrink2 < 1.0f ? (double)(float)(r2 * shrink2) : r2, s = 0.0;
+    for (size_t i = 0; i < c; i++)
+        if (pf_photon_normal_agrees(&ph[buf[i].index], n, PF_NORMAL_AGREE) && (shrink2 >= 1.0f || buf[i].d2 < rs2))
+            s += ph[buf[i].index].power[1];
+    return s / (M_PI * rs2);
+}
+
+/* s_thin_wall_gap's check of one irradiance map irr (estimates over discs
+ * shrunk by shrink2): B's floor points (away from the side walls) whose
+ * support reaches the wall against the brute-force estimate over B's
+ * photons; A's floor points as near the wall give the scale. */
+static void s_gap_compare(const char *what, const pf_kdtree_t *global, const pf_kdtree_t *irr, int k, float max_r2,
+                          float shrink2, float wall_x, float t)
+{
+    pf_knn_t *buf = malloc(pf_kdtree_size(global) * sizeof *buf);
+    PF_CHECK(buf != NULL);
+    double got = 0.0, want = 0.0, worst = 0.0, lit_a = 0.0;
+    size_t near = 0, near_a = 0;
+    const pf_photon_t *q = pf_kdtree_photons(irr);
+    for (size_t i = 0; i < pf_kdtree_size(irr); i++) {
+        float y = q[i].pos[1], z = q[i].pos[2], w = q[i].pos[0] - wall_x;
+        if (!(y < 1e-3f && pf_photon_normal(&q[i]).y > 0.9f && z > 0.2f && z < 0.8f))
+            continue;
+        if (w < -t && w > -t - 0.05f) {
+            lit_a += q[i].power[1];
+            near_a++;
+        }
+        if (!(w > 0.0f && w < 0.05f))
+            continue;
+        double r, e = s_same_side_irradiance(global, &q[i], wall_x - 0.5f * t, k, max_r2, shrink2, buf, &r);
+        if (!(w < r))
+            continue;
+        got += q[i].power[1];
+        want += e;
+        worst = fmax(worst, e > 0.0 ? fabs(q[i].power[1] / e - 1.0) : q[i].power[1] > 0.0f);
+        near++;
+    }
+    free(buf);
+    double ratio = got / want, scale = (lit_a / (double)(near_a ? near_a : 1)) / (want / (double)(near ? near : 1));
+    printf("%s, disc shrunk by %.3f: %zu irradiance points on the dim floor within their support of the wall read "
+           "%.4f times the estimate from their side's photons (bound 1 +- 0.01; worst point %+.1f %%); the lit "
+           "floor as near the wall is %.0f times brighter\n",
+           what, (double)shrink2, near, ratio, 100.0 * worst, scale);
+    CHECK(near >= 20, "%s: only %zu irradiance points by the wall", what, near);
+    CHECK(scale > 10.0, "%s: the lit side is only %.1f times brighter: the test would prove little", what, scale);
+    CHECK(fabs(ratio - 1.0) <= 0.01, "%s, shrink %.3f: the dim side's irradiance by the wall is %.4f times its "
+          "photons' estimate", what, (double)shrink2, ratio);
 }
 
 /* A room split by a thin wall (1e-3 of the room) that stands on the floor
@@ -331,51 +375,27 @@ static void s_thin_wall_gap(void)
         return;
     }
     const pf_kdtree_t *global = job.fr.maps.global, *irr = job.fr.maps.irradiance;
-    pf_knn_t *buf = malloc(pf_kdtree_size(global) * sizeof *buf);
-    PF_CHECK(buf != NULL);
-    /* B's floor points (away from the side walls) whose disc reaches the
-     * wall, and for scale A's floor points as near the wall. */
-    double got = 0.0, want = 0.0, worst = 0.0, lit_a = 0.0;
-    size_t near = 0, near_a = 0;
-    const pf_photon_t *q = pf_kdtree_photons(irr);
-    for (size_t i = 0; i < pf_kdtree_size(irr); i++) {
-        float y = q[i].pos[1], z = q[i].pos[2], w = q[i].pos[0] - wall_x;
-        if (!(y < 1e-3f && pf_photon_normal(&q[i]).y > 0.9f && z > 0.2f && z < 0.8f))
-            continue;
-        if (w < -t && w > -t - 0.05f) {
-            lit_a += q[i].power[1];
-            near_a++;
-        }
-        if (!(w > 0.0f && w < 0.05f))
-            continue;
-        double r, e = s_same_side_irradiance(global, &q[i], wall_x - 0.5f * t, s.global_k, job.fr.maps.global_r2, buf, &r);
-        if (!(w < r))
-            continue;
-        got += q[i].power[1];
-        want += e;
-        worst = fmax(worst, fabs(q[i].power[1] / e - 1.0));
-        near++;
-    }
-    free(buf);
+    const float r2 = job.fr.maps.global_r2;
+    s_gap_compare(what, global, irr, s.global_k, r2, pf_pass_shrink2(job.settings.pass), wall_x, t);
     /* The same points from one thread, bit for bit (the visibility search
      * depends on the point alone, not on the thread's previous point). */
     pf_kdtree_t *one = NULL;
     size_t stride = pf_irradiance_points_stride(pf_kdtree_size(global), &job.settings);
-    int rc = pf_irradiance_precompute(global, (int)stride, s.global_k, job.fr.maps.global_r2,
-                                      pf_pass_shrink2(job.settings.pass), job.fr.accel, 1, &one);
+    int rc = pf_irradiance_precompute(global, (int)stride, s.global_k, r2, pf_pass_shrink2(job.settings.pass),
+                                      job.fr.accel, 1, &one);
     CHECK(rc == PF_OK && pf_kdtree_size(one) == pf_kdtree_size(irr) &&
-              memcmp(pf_kdtree_photons(one), q, pf_kdtree_size(irr) * sizeof *q) == 0,
+              memcmp(pf_kdtree_photons(one), pf_kdtree_photons(irr), pf_kdtree_size(irr) * sizeof(pf_photon_t)) == 0,
           "%s: the irradiance points differ between 1 and %d threads", what, job.settings.threads);
     pf_kdtree_destroy(&one);
-    double ratio = got / want, scale = (lit_a / (double)(near_a ? near_a : 1)) / (want / (double)(near ? near : 1));
-    printf("%s: %zu irradiance points on the dim floor within their support of the wall read %.4f times the "
-           "estimate from their side's photons (bound 1 +- 0.01; worst point %+.1f %%); the lit floor as near the "
-           "wall is %.0f times brighter; %.1f s\n",
-           what, near, ratio, 100.0 * worst, scale, pf_now() - t0);
-    CHECK(near >= 20, "%s: only %zu irradiance points by the wall", what, near);
-    CHECK(scale > 10.0, "%s: the lit side is only %.1f times brighter: the test would prove little", what, scale);
-    CHECK(fabs(ratio - 1.0) <= 0.01, "%s: the dim side's irradiance by the wall is %.4f times its photons' estimate",
-          what, ratio);
+    /* A later progressive pass's estimate (the disc shrunk) over the same
+     * photons: the seen photons within the shrunk disc alone. */
+    rc = pf_irradiance_precompute(global, (int)stride, s.global_k, r2, pf_pass_shrink2(3), job.fr.accel,
+                                  job.settings.threads, &one);
+    CHECK(rc == PF_OK, "%s: precompute at pass 3: %s", what, pf_strerror(rc));
+    if (rc == PF_OK)
+        s_gap_compare(what, global, one, s.global_k, r2, pf_pass_shrink2(3), wall_x, t);
+    pf_kdtree_destroy(&one);
+    printf("%s: %.1f s\n", what, pf_now() - t0);
     stress_job_end(&job);
     pf_scene_destroy(&scene);
 }
