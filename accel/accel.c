@@ -396,3 +396,71 @@ int pf_accel_only_plane(const pf_accel_t *self, pf_vec3 c, pf_vec3 n, float reac
     return pq.only_plane;
 }
 
+
+/* pf_accel_near_planes's query state. */
+typedef struct s_planes_query {
+    const pf_accel_t *accel;
+    double c[3], reach2;
+    pf_plane_t *planes;
+    int n, max; /* n > max: too many */
+} s_planes_query;
+
+/* Called by Embree for every triangle whose bounds meet the query sphere. */
+static bool s_planes_query_prim(struct RTCPointQueryFunctionArguments *args)
+{
+    s_planes_query *pq = args->userPtr;
+    const pf_scene_t *scene = pq->accel->scene;
+    if (args->geomID >= scene->nmeshes)
+        return false; /* the spheres are asked apart */
+    const pf_mesh_t *mesh = &scene->meshes[args->geomID];
+    const uint32_t *idx = &mesh->idx[3 * (size_t)args->primID];
+    double v[3][3];
+    for (int k = 0; k < 3; k++) {
+        pf_vec3 p = mesh->pos[idx[k]];
+        v[k][0] = p.x, v[k][1] = p.y, v[k][2] = p.z;
+    }
+    if (s_tri_dist2(pq->c, v[0], v[1], v[2]) > pq->reach2)
+        return false;
+    double e1[3], e2[3], nt[3];
+    for (int i = 0; i < 3; i++)
+        e1[i] = v[1][i] - v[0][i], e2[i] = v[2][i] - v[0][i];
+    nt[0] = e1[1] * e2[2] - e1[2] * e2[1];
+    nt[1] = e1[2] * e2[0] - e1[0] * e2[2];
+    nt[2] = e1[0] * e2[1] - e1[1] * e2[0];
+    double len = sqrt(s_dot3(nt, nt));
+    if (!(len > 0.0))
+        return false; /* no area: no ray hits it */
+    if (pq->n >= pq->max) {
+        pq->n = pq->max + 1;
+        args->query->radius = 0.0f; /* the answer is known: stop */
+        return true;
+    }
+    pf_plane_t *pl = &pq->planes[pq->n++];
+    for (int i = 0; i < 3; i++)
+        pl->n[i] = nt[i] / len;
+    pl->d = s_dot3(pl->n, v[0]);
+    return false;
+}
+
+int pf_accel_near_planes(const pf_accel_t *self, pf_vec3 c, float reach, pf_plane_t *planes, int max)
+{
+    if (!(reach >= 0.0f) || !isfinite(reach) || !isfinite(c.x) || !isfinite(c.y) || !isfinite(c.z) || max < 0)
+        return -1;
+    if (self->sphere_bounds) {
+        /* Any sphere's surface within reach (only_plane's test, whose
+         * sphere branch ignores the normal). */
+        s_plane_query sq = { self, { c.x, c.y, c.z }, { 0, 0, 1 }, (double)reach * reach, 1 };
+        struct RTCPointQuery q = { c.x, c.y, c.z, 0.0f, reach };
+        struct RTCPointQueryContext ctx;
+        rtcInitPointQueryContext(&ctx);
+        rtcPointQuery(self->sphere_bounds, &q, &ctx, s_plane_query_prim, &sq);
+        if (!sq.only_plane)
+            return -1;
+    }
+    s_planes_query pq = { self, { c.x, c.y, c.z }, (double)reach * reach, planes, 0, max };
+    struct RTCPointQuery q = { c.x, c.y, c.z, 0.0f, reach };
+    struct RTCPointQueryContext ctx;
+    rtcInitPointQueryContext(&ctx);
+    rtcPointQuery(self->rtc, &q, &ctx, s_planes_query_prim, &pq);
+    return pq.n > max ? -1 : pq.n;
+}

@@ -57,6 +57,20 @@ float pf_accel_eps(const pf_accel_t *self);
 #define PF_ACCEL_PLANE_TILT 5e-4f
 int pf_accel_only_plane(const pf_accel_t *self, pf_vec3 c, pf_vec3 n, float reach);
 
+/* A triangle's plane: the points y with n . y = d, n unit (in double, so
+ * that which side of it a point lies on is known to far below eps). */
+typedef struct pf_plane {
+    double n[3], d;
+} pf_plane_t;
+
+/* The planes of the triangles that come within reach of c, into
+ * planes[0, max): returns how many (0 when none), or -1 when more than max
+ * do or a sphere's surface does. A segment that lies within reach of c and
+ * whose two ends lie on one side of every plane returned, each by more than
+ * 4 pf_accel_eps, hits nothing: pf_accel_occluded need not be asked. Safe
+ * from any thread. */
+int pf_accel_near_planes(const pf_accel_t *self, pf_vec3 c, float reach, pf_plane_t *planes, int max);
+
 /* A ray leaving the hit point in direction w. */
 static inline pf_ray_t pf_spawn_ray(const pf_hit_t *h, pf_vec3 w)
 {

@@ -9,11 +9,13 @@
 /* For every stride-th photon of global (in tree order) estimates the
  * irradiance from its k nearest photons within max_r2 whose surface normal
  * agrees, over their disc shrunk by shrink2 (a progressive pass's,
- * pf_pass_shrink2; 1: none), and builds *out: records with the photon's
- * position and normal and the irradiance (W/m^2) in power[], and the
- * support radius (the unshrunk disc's: where photons were found, which
- * lookups must lie within) in dir with each point's flat flag found against
- * accel's surfaces (none when accel is NULL; photonmap.h). Deterministic for
+ * pf_pass_shrink2; 1: none), leaving out those the point cannot see past
+ * accel's surfaces (pf_pm_irradiance_seen: a thin wall's far side), and
+ * builds *out: records with the photon's position and normal and the
+ * irradiance (W/m^2) in power[], and the support radius (the unshrunk
+ * disc's: where photons were found, which lookups must lie within) in dir
+ * with each point's flat flag found against accel's surfaces (no flag and
+ * no visibility test when accel is NULL; photonmap.h). Deterministic for
  * any thread count. 0 or PF_ENOMEM. */
 int pf_irradiance_precompute(const pf_kdtree_t *global, int stride, int k, float max_r2, float shrink2,
                              const pf_accel_t *accel, int threads, pf_kdtree_t **out);

@@ -6,6 +6,7 @@
 
 #include <math.h>
 #include <stddef.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "base/status.h"
@@ -338,4 +339,212 @@ pf_vec3 pf_pm_radiance(const pf_kdtree_t *map, const struct pf_material *m, pf_v
     }
     double inv = 1.0 / (PF_PI * (double)r2);
     return pf_v3((float)(s[0] * inv), (float)(s[1] * inv), (float)(s[2] * inv));
+}
+
+int pf_pm_visible_scratch_init(pf_pm_visible_scratch_t *vs, size_t cap)
+{
+    memset(vs, 0, sizeof *vs);
+    if (cap < PF_PM_FOUND)
+        cap = PF_PM_FOUND;
+    vs->found = malloc(cap * sizeof *vs->found);
+    vs->keys = malloc(cap * sizeof *vs->keys);
+    vs->visible = malloc(PF_MAX_K * sizeof *vs->visible);
+    if (!vs->found || !vs->keys || !vs->visible) {
+        pf_pm_visible_scratch_free(vs);
+        return PF_ENOMEM;
+    }
+    vs->cap = cap;
+    return PF_OK;
+}
+
+void pf_pm_visible_scratch_free(pf_pm_visible_scratch_t *vs)
+{
+    if (!vs)
+        return;
+    free(vs->found);
+    free(vs->keys);
+    free(vs->visible);
+    memset(vs, 0, sizeof *vs);
+}
+
+/* The surfaces near one query point, to spare its visibility rays. */
+typedef struct s_near {
+    const pf_plane_t *planes;
+    int n;        /* -1: unknown (trace every ray) */
+    float reach;  /* the planes are those of every triangle within reach */
+    double margin;
+} s_near;
+
+/* Whether every near plane has both a and b on one side of it (by more
+ * than the margin): then the segment meets no triangle within reach. */
+static int s_separated(const s_near *near, pf_vec3 a, pf_vec3 b)
+{
+    for (int i = 0; i < near->n; i++) {
+        const pf_plane_t *pl = &near->planes[i];
+        double sa = pl->n[0] * a.x + pl->n[1] * a.y + pl->n[2] * a.z - pl->d;
+        double sb = pl->n[0] * b.x + pl->n[1] * b.y + pl->n[2] * b.z - pl->d;
+        if (!((sa > near->margin && sb > near->margin) || (sa < -near->margin && sb < -near->margin)))
+            return 0;
+    }
+    return 1;
+}
+
+/* Whether x (unit normal n) sees photon p at distance d: the segment from x
+ * lifted by d along n to p lifted by d along its own normal (the side it
+ * was stored on) hits nothing. For a photon of x's plane that is the leak
+ * test's ray; lifting each end along its own normal also keeps a photon on
+ * a wall that meets x's plane (a corner) in view, its end moved off the wall
+ * into the room, while one on the wall's far face moves further behind it.
+ * Lifting by d keeps the segment clear of x's own surface where it curves
+ * (it sags d^2 / 2R below the tangent plane) or is tessellated. Within eps
+ * no wall fits between. The segment lies within 2 d of x, so where no near
+ * plane separates its ends no ray is needed: at a corner, and on a thin
+ * wall's near side, no plane does. */
+static int s_seen(const pf_accel_t *accel, const s_near *near, pf_vec3 x, pf_vec3 n, const pf_photon_t *p, float d,
+                  float eps)
+{
+    if (!(d > eps))
+        return 1;
+    pf_vec3 a = pf_madd(x, n, d), b = pf_madd(pf_photon_pos(p), pf_photon_normal(p), d);
+    if (near->n >= 0 && 2.0f * d <= near->reach && s_separated(near, a, b))
+        return 1;
+    pf_vec3 ab = pf_sub(b, a);
+    float len = pf_len(ab);
+    if (!(len > 0.0f))
+        return 1;
+    pf_ray_t ray = { a, pf_scale(ab, 1.0f / len) };
+    return !pf_accel_occluded(accel, &ray, len);
+}
+
+/* Normalization when photons are hidden: the k - 1 nearest SEEN photons
+ * over the disc of the k-th seen one, not the k nearest with the hidden
+ * ones dropped from the sum. Both divide by the whole disc, part of which
+ * (behind the wall) is not x's surface, so both read low by the share of
+ * the disc the wall cuts off, as the estimate already does at any corner
+ * (a wall's photons there count towards k but not the sum). But when the
+ * far side is much brighter its photons crowd the k nearest: dropping them
+ * would leave few photons (noise) over a tiny disc, and that disc is also
+ * the point's support (pf_irradiance_radius), outside of which lookups read
+ * zero, so a dark band would line the wall. The k nearest seen photons keep
+ * the noise and the support at x's own side's density. Dividing by the seen
+ * part of the disc instead would remove the corner bias too, but needs that
+ * area, which no query gives, and would make the corner and the thin wall
+ * disagree.
+ *
+ * The estimate over the seen photons at x into *e and *r2 (which hold the
+ * plain estimate's squared radius on entry); returns how many photons were
+ * found hidden, 0 leaving *e and *r2 as they were. */
+static size_t s_seen_estimate(const pf_kdtree_t *map, const pf_accel_t *accel, s_near near, pf_vec3 x, pf_vec3 n,
+                              size_t kk, float max_r2, float shrink2, pf_vec3 *e, float *r2,
+                              pf_pm_visible_scratch_t *vs)
+{
+    const pf_photon_t *ph = pf_kdtree_photons(map);
+    const float eps = pf_accel_eps(accel);
+    /* Search radii grow; the photons within a smaller one are a prefix (in
+     * (d2, index) order) of those within a larger one, so each is tested
+     * once and the seen ones kept in order in vs->visible. */
+    float search = fminf(*r2, max_r2), done = 0.0f;
+    size_t tested = 0, seen = 0, hidden = 0;
+    int complete = 0;
+    for (;;) {
+        size_t c = pf_kdtree_radius(map, x, search, vs->found, vs->cap);
+        if (c > vs->cap)
+            break; /* too many to sort: the seen ones within `done` serve */
+        /* keys[0, tested) hold, sorted, the photons within done (all of
+         * them, tested); the new ones lie beyond it: sort only those. */
+        size_t m = tested;
+        for (size_t i = 0; i < c; i++)
+            if (vs->found[i].d2 > done || tested == 0)
+                vs->keys[m++] = s_knn_key(&vs->found[i]);
+        PF_DCHECK(m == c);
+        s_sort_keys(vs->keys + tested, m - tested);
+        c = m;
+        for (; tested < c && seen < kk; tested++) {
+            pf_knn_t f = s_knn_of_key(vs->keys[tested]);
+            if (s_seen(accel, &near, x, n, &ph[f.index], sqrtf(f.d2), eps))
+                vs->visible[seen++] = vs->keys[tested];
+            else
+                hidden++;
+        }
+        if (seen >= kk || !(search < max_r2)) {
+            complete = 1;
+            break;
+        }
+        /* Fewer than k seen within search, all tested: widen to where the
+         * seen photons' density would hold k, by 1.5 to 16 times the area. */
+        done = search;
+        float grow = 1.25f * (float)kk / (float)(seen ? seen : 1);
+        grow = fminf(fmaxf(grow, 1.5f), 16.0f);
+        search = search > 0.0f ? fminf(search * grow, max_r2) : max_r2;
+        /* The planes near the wider photons' segments too (else each of
+         * them would trace its ray). */
+        near.reach = 2.0f * sqrtf(search) * 1.001f;
+        near.n = pf_accel_near_planes(accel, x, near.reach + 4.0f * eps, vs->planes, PF_PM_VISIBLE_PLANES);
+    }
+    if (hidden == 0)
+        return 0; /* nothing tested (the first search overflowed): the estimate stands */
+    float rr = done;
+    size_t sum_n = seen;
+    if (complete && seen >= kk) {
+        rr = s_knn_of_key(vs->visible[kk - 1]).d2;
+        sum_n = kk == 1 ? 1 : kk - 1; /* k = 1: the nearest over max_r2, as s_gather */
+        if (kk == 1)
+            rr = max_r2;
+    } else if (complete) {
+        rr = max_r2; /* fewer than k seen within max_r2: all of them over it */
+    }
+    *r2 = rr; /* the support: the unshrunk disc, as s_estimate's callers keep it */
+    float rs2 = shrink2 < 1.0f ? rr * shrink2 : rr;
+    if (!(rs2 > 0.0f)) {
+        *e = pf_v3s(0.0f);
+        return hidden;
+    }
+    /* As s_estimate with a constant kernel: the disc shrunk by shrink2
+     * keeps the seen photons within it. */
+    double s[3] = { 0, 0, 0 };
+    for (size_t i = 0; i < sum_n; i++) {
+        pf_knn_t f = s_knn_of_key(vs->visible[i]);
+        const pf_photon_t *p = &ph[f.index];
+        if (!pf_photon_normal_agrees(p, n, PF_NORMAL_AGREE) || (shrink2 < 1.0f && !(f.d2 < rs2)))
+            continue;
+        s[0] += p->power[0];
+        s[1] += p->power[1];
+        s[2] += p->power[2];
+    }
+    double inv = 1.0 / (PF_PI * (double)rs2);
+    *e = pf_v3((float)(s[0] * inv), (float)(s[1] * inv), (float)(s[2] * inv));
+    return hidden;
+}
+
+pf_vec3 pf_pm_irradiance_seen(const pf_kdtree_t *map, const pf_accel_t *accel, pf_vec3 x, pf_vec3 n, int k,
+                              float max_r2, float hint_r2, float shrink2, pf_pm_scratch_t *scratch,
+                              pf_pm_visible_scratch_t *vs, float *r2_out, int *flat_out)
+{
+    float r2 = max_r2;
+    size_t cnt = s_gather(map, x, k, max_r2, hint_r2, scratch, &r2);
+    const pf_photon_t *ph = pf_kdtree_photons(map);
+    pf_vec3 e = s_estimate(map, scratch, cnt, n, r2, shrink2, 0);
+    *r2_out = r2;
+    *flat_out = 0;
+    if (!accel)
+        return e;
+    *flat_out = pf_accel_only_plane(accel, x, n, PF_IRRADIANCE_FLAT_REACH * sqrtf(r2));
+    if (*flat_out || cnt == 0)
+        return e;
+    if (k > PF_MAX_K)
+        k = PF_MAX_K;
+    /* The triangles within reach of the nearest photons' segments (2 d,
+     * with a margin for the rounding of their ends). */
+    const float eps = pf_accel_eps(accel);
+    s_near near = { vs->planes, -1, 2.0f * sqrtf(fminf(r2, max_r2)) * 1.001f, 4.0 * (double)eps };
+    near.n = pf_accel_near_planes(accel, x, near.reach + 4.0f * eps, vs->planes, PF_PM_VISIBLE_PLANES);
+    /* The photons summed, all seen: the estimate stands (the k-th only
+     * marks the radius). Else the search over seen photons. */
+    size_t i = 0;
+    while (i < cnt && s_seen(accel, &near, x, n, &ph[scratch->found[i].index], sqrtf(scratch->found[i].d2), eps))
+        i++;
+    if (i == cnt)
+        return e;
+    s_seen_estimate(map, accel, near, x, n, (size_t)k, max_r2, shrink2, &e, r2_out, vs);
+    return e;
 }

@@ -160,4 +160,41 @@ struct pf_material;
 pf_vec3 pf_pm_radiance(const pf_kdtree_t *map, const struct pf_material *m, pf_vec3 x, pf_vec3 n, pf_vec3 wo, int k,
                        float max_r2, float shrink2, pf_pm_scratch_t *scratch);
 
+/* The most surfaces near a point whose planes spare the visibility rays
+ * (pf_accel_near_planes); near more, every photon's ray is traced. */
+#define PF_PM_VISIBLE_PLANES 32
+/* Working memory of pf_pm_irradiance_seen (one per thread): room for
+ * cap photons of a radius search and their keys. */
+typedef struct pf_pm_visible_scratch {
+    size_t cap;
+    pf_knn_t *found;   /* cap entries */
+    uint64_t *keys;    /* cap entries */
+    uint64_t *visible; /* PF_MAX_K entries */
+    pf_plane_t planes[PF_PM_VISIBLE_PLANES];
+} pf_pm_visible_scratch_t;
+
+/* Allocates scratch for radius searches of up to cap photons (cap >=
+ * PF_PM_FOUND); 0 or PF_ENOMEM. pf_pm_visible_scratch_free frees it
+ * (NULL-safe, zeroes the struct). */
+int pf_pm_visible_scratch_init(pf_pm_visible_scratch_t *vs, size_t cap);
+void pf_pm_visible_scratch_free(pf_pm_visible_scratch_t *vs);
+
+/* pf_pm_estimate's (constant kernel, the disc shrunk by shrink2) at x
+ * (unit normal n) over the photons that x can see, for the irradiance
+ * precompute; *r2_out gets the unshrunk squared radius and *flat_out the point's flat flag (pf_accel_only_plane
+ * within PF_IRRADIANCE_FLAT_REACH of that radius; 0 without accel).
+ * A photon at distance d is hidden when the segment from x lifted by d
+ * along n to the photon lifted by d along its own normal hits a surface of
+ * accel (for a photon of x's plane, the leak test's ray,
+ * pf_irradiance_leak_ray); within pf_accel_eps of x it is seen. Where the
+ * point is flat, or the k - 1 photons of the estimate are all seen, the
+ * estimate is pf_pm_estimate's, bit for bit, and no ray is traced
+ * for a flat point. Otherwise it is the same estimate over the seen
+ * photons alone: the k - 1 nearest seen ones over the disc of the k-th seen
+ * one (or all seen within max_r2 over that disc). A pure function of the
+ * map, accel and the query, whatever the hint. k <= PF_MAX_K. */
+pf_vec3 pf_pm_irradiance_seen(const pf_kdtree_t *map, const pf_accel_t *accel, pf_vec3 x, pf_vec3 n, int k,
+                              float max_r2, float hint_r2, float shrink2, pf_pm_scratch_t *scratch,
+                              pf_pm_visible_scratch_t *vs, float *r2_out, int *flat_out);
+
 #endif

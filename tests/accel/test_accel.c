@@ -509,6 +509,63 @@ static void s_test_only_plane(void)
     pf_scene_destroy(&sc);
 }
 
+/* pf_accel_near_planes on the same floor, wall, sheet and sphere: which
+ * triangles it finds, that a segment its planes separate from nothing
+ * indeed hits nothing, and its refusals (too many, a sphere). */
+static void s_test_near_planes(void)
+{
+    pf_scene_t *sc = s_scene();
+    const pf_vec3 floor[4] = { { -2, 0, -2 }, { 2, 0, -2 }, { 2, 0, 2 }, { -2, 0, 2 } };
+    const uint32_t quad[6] = { 0, 2, 1, 0, 3, 2 };
+    s_add_tris(sc, floor, 4, quad, 2, NULL);
+    const pf_vec3 wall[4] = { { 1, 0, -2 }, { 1, 2, -2 }, { 1, 2, 2 }, { 1, 0, 2 } };
+    s_add_tris(sc, wall, 4, quad, 2, NULL);
+    pf_sphere_t sp = { .center = pf_v3(-1.0f, 0.5f, -1.0f), .radius = 0.25f, .mat = 0 };
+    pf_scene_add_sphere(sc, &sp);
+    pf_accel_t *acc = s_accel(sc);
+    pf_plane_t pl[8];
+    /* The floor's two triangles (split along x = z) from its middle; from
+     * (0.5, 0, -0.5), 0.71 from that diagonal, one of them, and the wall's
+     * lower triangle beyond 0.5. */
+    int n = pf_accel_near_planes(acc, pf_v3(0.0f, 0.0f, 0.0f), 0.4f, pl, 8);
+    CHECK(n == 2, "open floor: %d planes, expected its 2 triangles", n);
+    for (int i = 0; i < n; i++)
+        CHECK(fabs(fabs(pl[i].n[1]) - 1.0) < 1e-12 && fabs(pl[i].d) < 1e-12, "floor plane %d: n (%g %g %g) d %g", i,
+              pl[i].n[0], pl[i].n[1], pl[i].n[2], pl[i].d);
+    n = pf_accel_near_planes(acc, pf_v3(0.5f, 0.0f, -0.5f), 0.45f, pl, 8);
+    CHECK(n == 1, "the wall or the far floor triangle counted from 0.5 at reach 0.45 (%d planes)", n);
+    n = pf_accel_near_planes(acc, pf_v3(0.5f, 0.0f, -0.5f), 0.55f, pl, 8);
+    int walls = 0;
+    for (int i = 0; i < n; i++)
+        walls += fabs(fabs(pl[i].n[0]) - 1.0) < 1e-12 && fabs(fabs(pl[i].d) - 1.0) < 1e-12;
+    CHECK(n == 2 && walls == 1, "the wall missed from 0.5 at reach 0.55 (%d planes, %d of the wall)", n, walls);
+    /* Too many for the room given, or a sphere within reach: -1. */
+    CHECK(pf_accel_near_planes(acc, pf_v3(0.5f, 0.0f, -0.5f), 0.55f, pl, 1) == -1, "2 planes fit in 1");
+    CHECK(pf_accel_near_planes(acc, pf_v3(-1.0f, 0.0f, -1.0f), 0.3f, pl, 8) == -1, "the sphere above missed");
+    CHECK(pf_accel_near_planes(acc, pf_v3(NAN, 0.0f, 0.0f), 0.3f, pl, 8) == -1, "a NaN point passed");
+    /* Segments near the wall: the planes separate them from nothing (both
+     * ends on one side of every plane) exactly when no ray hits, here. */
+    const pf_vec3 c = pf_v3(0.8f, 0.0f, 0.0f);
+    n = pf_accel_near_planes(acc, c, 0.5f, pl, 8);
+    CHECK(n == 2, "floor and wall from 0.2: %d planes", n);
+    const pf_vec3 ends[][2] = { { { 0.7f, 0.1f, 0.0f }, { 0.95f, 0.1f, 0.2f } },   /* room side */
+                                { { 0.7f, 0.1f, 0.0f }, { 1.05f, 0.1f, 0.1f } } }; /* through the wall */
+    for (int s = 0; s < 2; s++) {
+        int apart = 1;
+        for (int i = 0; i < n; i++) {
+            double sa = pl[i].n[0] * ends[s][0].x + pl[i].n[1] * ends[s][0].y + pl[i].n[2] * ends[s][0].z - pl[i].d;
+            double sb = pl[i].n[0] * ends[s][1].x + pl[i].n[1] * ends[s][1].y + pl[i].n[2] * ends[s][1].z - pl[i].d;
+            apart &= (sa > 0) == (sb > 0);
+        }
+        pf_vec3 ab = pf_sub(ends[s][1], ends[s][0]);
+        pf_ray_t r = { ends[s][0], pf_norm(ab) };
+        int hit = pf_accel_occluded(acc, &r, pf_len(ab));
+        CHECK(apart == (s == 0) && hit == (s == 1), "segment %d: one-sided %d, occluded %d", s, apart, hit);
+    }
+    pf_accel_destroy(&acc);
+    pf_scene_destroy(&sc);
+}
+
 /* ---- camera ---- */
 
 static void s_test_camera(void)
@@ -598,6 +655,7 @@ int main(void)
     s_test_triangle_spawn("ceiling-light triangle in the plane y = 1.98", ceil, 26);
     s_test_occluded();
     s_test_only_plane();
+    s_test_near_planes();
     s_test_camera();
     printf("%d passed, %d failed\n", s_passed, s_failed);
     return s_failed ? 1 : 0;

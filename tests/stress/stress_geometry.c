@@ -13,6 +13,7 @@
 #include "accel/accel.h"
 #include "base/log.h"
 #include "load/load.h"
+#include "photon/irradiance.h"
 #include "render/render.h"
 
 #include "scenes_gen.h"
@@ -260,6 +261,145 @@ static void s_thin_wall(float thickness)
     pf_scene_destroy(&scene);
 }
 
+/* An entry of the brute-force estimate below: a photon's (d2, index) key. */
+static int s_key_cmp(const void *a, const void *b)
+{
+    const pf_knn_t *x = a, *y = b;
+    if (x->d2 != y->d2)
+        return x->d2 < y->d2 ? -1 : 1;
+    return x->index < y->index ? -1 : x->index > y->index;
+}
+
+/* The irradiance (green channel) at irradiance point q by
+ * pf_pm_irradiance's rule, from the photons of q's own side of the wall
+ * only (x > side_x, a plane inside the wall): the k - 1 nearest of them, those with
+ * agreeing normals summed, over the disc of the k-th; or all within max_r2
+ * over that disc; that disc shrunk by shrink2 (a progressive pass's) keeps
+ * those within it. The unshrunk radius goes to *r_out. buf holds the map's
+ * size. */
+static double s_same_side_irradiance(const pf_kdtree_t *global, const pf_photon_t *q, float side_x, int k,
+                                     float max_r2, float shrink2, pf_knn_t *buf, double *r_out)
+{
+    const pf_photon_t *ph = pf_kdtree_photons(global);
+    pf_vec3 x = pf_photon_pos(q), n = pf_photon_normal(q);
+    size_t c = 0;
+    for (size_t i = 0; i < pf_kdtree_size(global); i++) {
+        float d2 = pf_len2(pf_sub(pf_photon_pos(&ph[i]), x));
+        if (ph[i].pos[0] > side_x && d2 <= max_r2)
+            buf[c++] = (pf_knn_t){ (uint32_t)i, d2 };
+    }
+    qsort(buf, c, sizeof *buf, s_key_cmp);
+    double r2 = max_r2;
+    if (c >= (size_t)k) {
+        r2 = buf[k - 1].d2;
+        c = (size_t)k - 1;
+    }
+    *r_out = sqrt(r2);
+    double rs2 = shrink2 < 1.0f ? (double)(float)(r2 * shrink2) : r2, s = 0.0;
+    for (size_t i = 0; i < c; i++)
+        if (pf_photon_normal_agrees(&ph[buf[i].index], n, PF_NORMAL_AGREE) && (shrink2 >= 1.0f || buf[i].d2 < rs2))
+            s += ph[buf[i].index].power[1];
+    return s / (M_PI * rs2);
+}
+
+/* s_thin_wall_gap's check of one irradiance map irr (estimates over discs
+ * shrunk by shrink2): B's floor points (away from the side walls) whose
+ * support reaches the wall against the brute-force estimate over B's
+ * photons; A's floor points as near the wall give the scale. */
+static void s_gap_compare(const char *what, const pf_kdtree_t *global, const pf_kdtree_t *irr, int k, float max_r2,
+                          float shrink2, float wall_x, float t)
+{
+    pf_knn_t *buf = malloc(pf_kdtree_size(global) * sizeof *buf);
+    PF_CHECK(buf != NULL);
+    double got = 0.0, want = 0.0, worst = 0.0, lit_a = 0.0;
+    size_t near = 0, near_a = 0;
+    const pf_photon_t *q = pf_kdtree_photons(irr);
+    for (size_t i = 0; i < pf_kdtree_size(irr); i++) {
+        float y = q[i].pos[1], z = q[i].pos[2], w = q[i].pos[0] - wall_x;
+        if (!(y < 1e-3f && pf_photon_normal(&q[i]).y > 0.9f && z > 0.2f && z < 0.8f))
+            continue;
+        if (w < -t && w > -t - 0.05f) {
+            lit_a += q[i].power[1];
+            near_a++;
+        }
+        if (!(w > 0.0f && w < 0.05f))
+            continue;
+        double r, e = s_same_side_irradiance(global, &q[i], wall_x - 0.5f * t, k, max_r2, shrink2, buf, &r);
+        if (!(w < r))
+            continue;
+        got += q[i].power[1];
+        want += e;
+        worst = fmax(worst, e > 0.0 ? fabs(q[i].power[1] / e - 1.0) : q[i].power[1] > 0.0f);
+        near++;
+    }
+    free(buf);
+    double ratio = got / want, scale = (lit_a / (double)(near_a ? near_a : 1)) / (want / (double)(near ? near : 1));
+    printf("%s, disc shrunk by %.3f: %zu irradiance points on the dim floor within their support of the wall read "
+           "%.4f times the estimate from their side's photons (bound 1 +- 0.01; worst point %+.1f %%); the lit "
+           "floor as near the wall is %.0f times brighter\n",
+           what, (double)shrink2, near, ratio, 100.0 * worst, scale);
+    CHECK(near >= 20, "%s: only %zu irradiance points by the wall", what, near);
+    CHECK(scale > 10.0, "%s: the lit side is only %.1f times brighter: the test would prove little", what, scale);
+    CHECK(fabs(ratio - 1.0) <= 0.01, "%s, shrink %.3f: the dim side's irradiance by the wall is %.4f times its "
+          "photons' estimate", what, (double)shrink2, ratio);
+}
+
+/* A room split by a thin wall (1e-3 of the room) that stands on the floor
+ * and stops 0.3 short of the ceiling; a point light on side A, low and
+ * 0.1 from the wall, so that A's floor by the wall is far brighter than
+ * B's, which only light over the wall reaches. The irradiance points on B's
+ * floor by the wall must read B's photons alone: their estimate must equal
+ * the same estimate over B's photons (brute force), where summing A's
+ * photons under the wall (which the normal test keeps: same plane, same
+ * normal) reads A's brightness into B, and the final gather carries it onto
+ * everything B's floor lights. (s_thin_wall's rooms are closed: no photon
+ * reaches room B, so no irradiance point lies there to go wrong.) */
+static void s_thin_wall_gap(void)
+{
+    const float t = 2e-3f, wall_x = 1.0f;
+    pf_scene_t *scene = pf_scene_create();
+    uint32_t white = stress_material(scene, stress_diffuse("white", 0.8f, 0.0f));
+    stress_box(scene, pf_v3(0, 0, 0), pf_v3(2, 1, 1), white, 1);
+    /* Through the floor and the side walls a little: no coplanar faces. */
+    stress_box(scene, pf_v3(wall_x - t, -0.01f, -0.01f), pf_v3(wall_x, 0.7f, 1.01f), white, 0);
+    stress_point_light(scene, pf_v3(wall_x - t - 0.1f, 0.15f, 0.5f), 1.0f);
+    stress_camera(scene, pf_v3(1.9f, 0.5f, 0.5f), pf_v3(1.0f, 0.0f, 0.5f), pf_v3(0, 1, 0), 60.0f);
+    pf_error_t err = { { 0 } };
+    CHECK(pf_scene_finalize(scene, &err) == PF_OK, "finalize: %s", err.msg);
+    pf_settings_t s = stress_settings(scene, 16, 1, 100000, 1);
+    const char *what = "thin wall with a gap above";
+    stress_job_t job;
+    double t0 = pf_now();
+    if (stress_job_begin(&job, what, scene, &s) != PF_OK) {
+        pf_scene_destroy(&scene);
+        return;
+    }
+    const pf_kdtree_t *global = job.fr.maps.global, *irr = job.fr.maps.irradiance;
+    const float r2 = job.fr.maps.global_r2;
+    s_gap_compare(what, global, irr, s.global_k, r2, pf_pass_shrink2(job.settings.pass), wall_x, t);
+    /* The same points from one thread, bit for bit (the visibility search
+     * depends on the point alone, not on the thread's previous point). */
+    pf_kdtree_t *one = NULL;
+    size_t stride = pf_irradiance_points_stride(pf_kdtree_size(global), &job.settings);
+    int rc = pf_irradiance_precompute(global, (int)stride, s.global_k, r2, pf_pass_shrink2(job.settings.pass),
+                                      job.fr.accel, 1, &one);
+    CHECK(rc == PF_OK && pf_kdtree_size(one) == pf_kdtree_size(irr) &&
+              memcmp(pf_kdtree_photons(one), pf_kdtree_photons(irr), pf_kdtree_size(irr) * sizeof(pf_photon_t)) == 0,
+          "%s: the irradiance points differ between 1 and %d threads", what, job.settings.threads);
+    pf_kdtree_destroy(&one);
+    /* A later progressive pass's estimate (the disc shrunk) over the same
+     * photons: the seen photons within the shrunk disc alone. */
+    rc = pf_irradiance_precompute(global, (int)stride, s.global_k, r2, pf_pass_shrink2(3), job.fr.accel,
+                                  job.settings.threads, &one);
+    CHECK(rc == PF_OK, "%s: precompute at pass 3: %s", what, pf_strerror(rc));
+    if (rc == PF_OK)
+        s_gap_compare(what, global, one, s.global_k, r2, pf_pass_shrink2(3), wall_x, t);
+    pf_kdtree_destroy(&one);
+    printf("%s: %.1f s\n", what, pf_now() - t0);
+    stress_job_end(&job);
+    pf_scene_destroy(&scene);
+}
+
 /* The camera inside a closed, opaque box; the lights outside. */
 static void s_camera_in_box(void)
 {
@@ -297,6 +437,7 @@ void stress_test_geometry(void)
     s_light_in_glass(0.24f, 0);
     s_thin_wall(2e-4f);
     s_thin_wall(2e-6f);
+    s_thin_wall_gap();
     s_camera_in_box();
 }
 

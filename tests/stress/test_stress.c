@@ -19,7 +19,9 @@
  *               furnace; a point light inside a glass sphere (centred, and
  *               off centre where 55 % of its photons are trapped by total
  *               internal reflection); a thin wall (no light in the dark room
- *               behind it); cameras inside a closed box and inside glass.
+ *               behind it); a thin wall with a gap above (the dim side's
+ *               irradiance points read only their side's photons); cameras
+ *               inside a closed box and inside glass.
  *   degenerate  zero-area triangles, repeated vertices, NaN and Inf
  *               coordinates, huge coordinates, in OBJ, PLY and JSON files
  *               (tests/data/stress): each is rejected with an error naming
