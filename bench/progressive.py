@@ -108,7 +108,7 @@ def render(exe, scene, args, out, log):
     wall = time.monotonic() - t0
     with open(log) as lf:
         text = lf.read()
-    m = re.search(r'passes: (\d+) whole(?: \+ (\d+) of (\d+) tiles)?, (\d+) samples per pixel', text)
+    m = re.search(r'passes: (\d+) whole(?: \+ (\d+) of (\d+) tiles of pass \d+)?, (\d+) samples per pixel', text)
     passes = m.group(1) + (('+' + m.group(2) + '/' + m.group(3) + ' tiles') if m.group(2) else '') if m else '1'
     spp = m.group(4) if m else ''
     if not m:
