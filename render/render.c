@@ -139,9 +139,14 @@ static inline float s_u(s_state *st) { return pf_rng_float(&st->rng); }
  * The ray leaves from the offset origin aimed at the light point itself (the
  * offset moves the origin off the line from the hit point), and stops short
  * of it by more than that point's rounding, so the emitter never occludes
- * itself, at any scale or distance from the origin. */
+ * itself, at any scale or distance from the origin. A distant light's
+ * dist is INFINITY: the ray must escape. */
 static int s_visible(const pf_accel_t *accel, const pf_hit_t *h, pf_vec3 wi, float dist)
 {
+    if (isinf(dist)) { /* a distant light: nothing may lie ahead */
+        pf_ray_t r = pf_spawn_ray(h, wi);
+        return !pf_accel_occluded(accel, &r, INFINITY);
+    }
     pf_vec3 target = pf_madd(h->p, wi, dist);
     pf_ray_t r = pf_spawn_ray(h, wi);
     pf_vec3 d = pf_sub(target, r.o);
