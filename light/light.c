@@ -5,12 +5,18 @@
  * 4 pi lum(I), a spot 2 pi lum(I) times the integral of its falloff, a
  * distant light pi R^2 lum(E): the flux of its irradiance E through the
  * disc that the scene's bounding sphere (radius R) casts, which is all of
- * it the scene can receive. One table serves direct lighting and photon
- * emission so both see the same distribution.
+ * it the scene can receive, an infinite light (a constant sky of radiance
+ * L) 4 pi^2 R^2 lum(L): pi L through that disc from each of 4 pi
+ * directions. One table serves direct lighting and photon emission so both
+ * see the same distribution.
  *
  * A distant light emits photons from that disc, placed on the light's side
  * of the sphere, perpendicular to its direction; caustic photons come from
- * the discs the specular targets cast on that plane. */
+ * the discs the specular targets cast on that plane. An infinite light does
+ * the same for a direction drawn uniformly over the sphere; its direct light
+ * samples directions uniformly over the sphere too, and it is sampled by
+ * light sampling alone (pdf 0, as a delta light: a rough conductor's BSDF
+ * ray that escapes adds nothing). */
 #include "light/light.h"
 
 #include <float.h>
@@ -18,12 +24,12 @@
 
 #include "base/sampling.h"
 
-typedef enum { S_AREA, S_POINT, S_DISTANT } s_kind;
+typedef enum { S_AREA, S_POINT, S_DISTANT, S_INFINITE } s_kind;
 
 typedef struct s_entry {
     s_kind kind;
     uint32_t mesh, tri; /* area */
-    uint32_t light;     /* point, spot or distant */
+    uint32_t light;     /* point, spot, distant or infinite */
     float area;
     /* A point light outside the scene's bounding sphere emits photons only
      * into the cone that holds the sphere (cos_max > -1; axis towards the
@@ -42,6 +48,7 @@ struct pf_lights {
      * lights shine through the disc it casts. */
     pf_vec3 center;
     float radius;
+    pf_vec3 sky; /* the radiance of the infinite lights, summed */
 };
 
 float pf_spot_falloff(const pf_light_t *l, float cos_theta)
@@ -59,6 +66,8 @@ static double s_light_power(const pf_light_t *l, float radius)
     double lum = pf_luminance(l->intensity);
     if (l->type == PF_LIGHT_DISTANT)
         return PF_PI * (double)radius * (double)radius * lum;
+    if (l->type == PF_LIGHT_INFINITE)
+        return 4.0 * PF_PI * PF_PI * (double)radius * (double)radius * lum;
     if (l->type == PF_LIGHT_POINT)
         return 4.0 * PF_PI * lum;
     /* Midpoint rule over cos theta in [cos_outer, 1]. */
@@ -139,7 +148,9 @@ pf_lights_t *pf_lights_build(const pf_scene_t *scene)
         double p = s_light_power(li, self->radius);
         if (!(p > 0.0))
             continue;
-        s_kind kind = li->type == PF_LIGHT_DISTANT ? S_DISTANT : S_POINT;
+        s_kind kind = li->type == PF_LIGHT_DISTANT ? S_DISTANT : li->type == PF_LIGHT_INFINITE ? S_INFINITE : S_POINT;
+        if (kind == S_INFINITE)
+            self->sky = pf_add(self->sky, li->intensity);
         self->entries[self->n] = (s_entry){ .kind = kind, .light = (uint32_t)l, .axis = li->dir, .cos_max = -1.0f };
         s_aim_at_scene(self, scene, &self->entries[self->n]);
         self->cdf[self->n++] = acc;
@@ -163,6 +174,11 @@ void pf_lights_destroy(pf_lights_t **self_p)
 }
 
 double pf_lights_power(const pf_lights_t *self) { return self->power; }
+pf_vec3 pf_lights_sky(const pf_lights_t *self, pf_vec3 d)
+{
+    (void)d; /* constant for now; an environment image would look d up */
+    return self->sky;
+}
 size_t pf_lights_count(const pf_lights_t *self) { return self->n; }
 
 /* Picks entry i with cdf[i] <= u < cdf[i+1]; *pmf its probability. */
@@ -230,6 +246,14 @@ int pf_lights_sample_direct(const pf_lights_t *self, const pf_scene_t *scene, pf
         out->wi = pf_neg(l->dir);
         out->dist = INFINITY;
         out->weight = pf_scale(l->intensity, 1.0f / (float)pmf);
+        out->pdf = 0.0f;
+        return 1;
+    }
+    if (e->kind == S_INFINITE) {
+        /* uniform over the sphere: L / (pdf pmf), pdf = 1 / (4 pi) */
+        out->wi = pf_sample_sphere(u[1], u[2]);
+        out->dist = INFINITY;
+        out->weight = pf_scale(l->intensity, 4.0f * PF_PI / (float)pmf);
         out->pdf = 0.0f;
         return 1;
     }
@@ -327,6 +351,14 @@ int pf_lights_emit(const pf_lights_t *self, const pf_scene_t *scene, const float
         out->flux = pf_scale(l->intensity, PF_PI * self->radius * self->radius / (float)pmf);
         return 1;
     }
+    if (e->kind == S_INFINITE) {
+        /* a direction uniform over the sphere, then as a distant light along it:
+         * L pi R^2 / (pdf_dir pmf), pdf_dir = 1 / (4 pi) */
+        pf_vec3 d = pf_sample_sphere(u[1], u[2]);
+        out->ray = (pf_ray_t){ s_disc_point(self, d, self->center, self->radius, u[3], u[4]), d };
+        out->flux = pf_scale(l->intensity, 4.0f * PF_PI * PF_PI * self->radius * self->radius / (float)pmf);
+        return 1;
+    }
     if (l->type == PF_LIGHT_POINT && e->cos_max > -1.0f) {
         /* I / (pdf_dir pmf), pdf_dir = 1 / solid angle of the cone. */
         out->ray = (pf_ray_t){ l->pos, pf_to_world(pf_sample_cone(u[3], u[4], e->cos_max), e->axis) };
@@ -411,27 +443,27 @@ static void s_cone(pf_vec3 p, const pf_target_t *t, pf_vec3 *axis, float *cos_ma
  * target chosen uniformly casts on the emission plane (every ray along dir
  * that meets a target crosses its disc), the flux divided by the mixture pdf
  * of all discs holding the point. */
-static int s_distant_targeted(const pf_lights_t *self, const pf_light_t *l, double pmf, const pf_target_t *targets,
-                              size_t ntargets, const float u[6], pf_emission_t *out)
+static int s_distant_targeted(const pf_lights_t *self, pf_vec3 dir, pf_vec3 irradiance, double pmf,
+                              const pf_target_t *targets, size_t ntargets, const float u[6], pf_emission_t *out)
 {
     size_t ti = (size_t)(u[3] * (float)ntargets);
     if (ti >= ntargets)
         ti = ntargets - 1;
-    pf_vec3 p = s_disc_point(self, l->dir, targets[ti].center, targets[ti].radius, u[4], u[5]);
+    pf_vec3 p = s_disc_point(self, dir, targets[ti].center, targets[ti].radius, u[4], u[5]);
     double pdf = 0.0;
     for (size_t k = 0; k < ntargets; k++) {
         pf_vec3 d = pf_sub(p, targets[k].center);
         float r = targets[k].radius;
         /* the squared distance to the target's centre line, by the disc's own test */
-        float dperp2 = pf_len2(pf_madd(d, l->dir, -pf_dot(d, l->dir)));
+        float dperp2 = pf_len2(pf_madd(d, dir, -pf_dot(d, dir)));
         if (k == ti || dperp2 <= r * r)
             pdf += 1.0 / (PF_PI * (double)r * (double)r);
     }
     pdf /= (double)ntargets;
     if (!(pdf > 0.0) || !isfinite(pdf))
         return 0;
-    out->ray = (pf_ray_t){ p, l->dir };
-    out->flux = pf_scale(l->intensity, (float)(1.0 / (pdf * pmf)));
+    out->ray = (pf_ray_t){ p, dir };
+    out->flux = pf_scale(irradiance, (float)(1.0 / (pdf * pmf)));
     out->perr = pf_v3s(0.0f);
     out->n = pf_v3s(0.0f);
     return 1;
@@ -444,8 +476,12 @@ int pf_lights_emit_targeted(const pf_lights_t *self, const pf_scene_t *scene, co
         return 0;
     double pmf;
     const s_entry *e = &self->entries[s_pick(self, u[0], &pmf)];
+    const pf_light_t *le = e->kind == S_AREA ? NULL : &scene->lights[e->light];
     if (e->kind == S_DISTANT)
-        return s_distant_targeted(self, &scene->lights[e->light], pmf, targets, ntargets, u, out);
+        return s_distant_targeted(self, le->dir, le->intensity, pmf, targets, ntargets, u, out);
+    if (e->kind == S_INFINITE) /* a direction uniform over the sphere, pdf 1 / (4 pi) */
+        return s_distant_targeted(self, pf_sample_sphere(u[1], u[2]), pf_scale(le->intensity, 4.0f * PF_PI), pmf,
+                                  targets, ntargets, u, out);
     pf_vec3 p, n = pf_v3s(0.0f), perr = pf_v3s(0.0f);
     const pf_light_t *l = NULL;
     if (e->kind == S_AREA) {

@@ -1,7 +1,7 @@
 /* scene_json.c: the JSON scene format (docs/scene-format.md). It parses the
  * file with cJSON, checks every key and value, and appends the camera, render
  * settings, materials, objects (OBJ and PLY models through their loaders,
- * analytic spheres, quads) and point, spot and distant lights to a pf_scene_t. It does not
+ * analytic spheres, quads) and point, spot, distant and infinite lights to a pf_scene_t. It does not
  * finalize the scene; pf_scene_load does that.
  *
  * This file holds the scene's sections and the entry point; reading the file,
@@ -820,8 +820,17 @@ static int s_light(s_ctx_t *c, const cJSON *o)
             rc = pf_json_rgb(c, vi, "irradiance", what, 0.0f, FLT_MAX, &l.intensity);
         if (!rc)
             l.dir = pf_norm(l.dir);
+    } else if (strcmp(type, "infinite") == 0) {
+        static const char *const keys[] = { "type", "radiance", NULL };
+        const char *what = "infinite light";
+        l.type = PF_LIGHT_INFINITE;
+        rc = pf_json_check_object(c, o, what, keys);
+        if (!rc)
+            rc = pf_json_require(c, o, "radiance", what, &vi);
+        if (!rc)
+            rc = pf_json_rgb(c, vi, "radiance", what, 0.0f, FLT_MAX, &l.intensity);
     } else {
-        return S_FAIL_AT(c, vt, "unknown light type '%.64s' (expected point, spot or distant)", type);
+        return S_FAIL_AT(c, vt, "unknown light type '%.64s' (expected point, spot, distant or infinite)", type);
     }
     if (rc)
         return rc;

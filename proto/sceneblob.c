@@ -16,7 +16,7 @@
  *                             ntris x 3 u32 idx, ntris x u32 mat }
  *   u32 nspheres, nspheres x { vec3 center, f32 radius, u32 mat }
  *   u32 nlights,  nlights x  { u8 type, vec3 pos, vec3 intensity, vec3 dir, f32 cos_inner, f32 cos_outer }
- *                             (version 6: type 2, the distant light)
+ *                             (version 6: types 2 and 3, the distant and infinite lights)
  * and nothing after.
  *
  * The reader treats the blob as hostile: every count is checked against the

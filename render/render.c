@@ -55,6 +55,17 @@
  *                                      from there (L S+ C E as emitted, paths
  *                                      with a vertex beyond by the next x)
  *
+ * Distant and infinite lights (the sun and a constant sky) fit the same
+ * rows. The sun is a delta: only light sampling (direct) and photons reach
+ * it, never a ray. The sky is an emitter every escaping ray reaches, as if
+ * it were an area light's front at infinity: a camera path through S only
+ * that escapes sees it (emitted, L S* E); x's light sampling draws
+ * directions over the sphere (direct, L D S* E), and a rough conductor's
+ * BSDF ray that escapes counts nothing (the sky's light samples carry all
+ * of L C S* E: no MIS); gather rays that escape count nothing (L D E is
+ * direct, L (S|C)+ D E caustic: the caustic photons come from the sky too);
+ * photons from a disc outside the scene, in every direction.
+ *
  * Every path from a light to the eye falls in exactly one row: the classes are
  * split by the first vertex from the eye that is not S (none: emitted; x) and,
  * for a diffuse x, by what lies between x and the light (nothing: direct; only
@@ -420,8 +431,8 @@ static pf_vec3 s_radiance(s_state *st, pf_ray_t ray, int depth, pf_vec3 thr, int
 {
     const pf_render_ctx_t *c = st->ctx;
     pf_hit_t h;
-    if (!pf_accel_intersect(c->accel, &ray, INFINITY, &h))
-        return pf_v3s(0.0f);
+    if (!pf_accel_intersect(c->accel, &ray, INFINITY, &h)) /* the sky, counted as an emitter's front */
+        return count_le == 1 && (c->terms & PF_TERM_EMITTED) ? pf_lights_sky(c->lights, ray.d) : pf_v3s(0.0f);
     const pf_material_t *m = &c->scene->mats[h.mat];
     pf_vec3 wo = pf_neg(ray.d);
     pf_vec3 nf = pf_face_forward(h.ng, wo);

@@ -37,7 +37,9 @@
  * distant light shining from "from" towards "to" (the CTM's linear part
  * turns that direction), irradiance L * scale, times "illuminance" when
  * given (pbrt-v4 normalizes L to one nit, which an RGB L already is here);
- * the other light types are warned as not rendered yet. */
+ * "infinite" without "filename" becomes a constant sky of radiance L *
+ * scale (times illuminance / pi when given); with an image it and the other
+ * light types are warned as not rendered yet. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -572,13 +574,59 @@ static int s_distant(pf_pbrt_t *c, pf_pbrt_params_t *ps, pf_pbrt_loc_t loc)
     return PF_OK;
 }
 
+/* LightSource "infinite" without an image: a constant sky. 1 when it has an
+ * image (not rendered yet: the caller warns), else 0 or a status. */
+static int s_infinite(pf_pbrt_t *c, pf_pbrt_params_t *ps, pf_pbrt_loc_t loc, int *image)
+{
+    const char *what = "LightSource \"infinite\"";
+    const char *file;
+    pf_vec3 L;
+    double scale, illum;
+    int rc = pf_pbrt_get_string(c, ps, "filename", "", &file);
+    *image = rc == PF_OK && file[0] != '\0';
+    if (rc || *image)
+        return rc;
+    rc = pf_pbrt_get_color(c, ps, "L", PF_PBRT_ILLUMINANT, pf_v3s(1.0f), what, &L, NULL);
+    if (rc == PF_OK)
+        rc = pf_pbrt_get_float(c, ps, "scale", 1.0, &scale);
+    if (rc == PF_OK)
+        rc = pf_pbrt_get_float(c, ps, "illuminance", -1.0, &illum);
+    if (rc == PF_OK && scale < 0.0)
+        rc = pf_pbrt_error(c, PF_ERANGE, loc, "%s: scale must be >= 0", what);
+    if (rc == PF_OK)
+        rc = pf_pbrt_check_unused(c, ps, what);
+    if (rc)
+        return rc;
+    if (illum > 0.0) /* pbrt-v4: the illuminance of an upward patch, pi L for a constant sky */
+        scale *= illum / M_PI;
+    pf_light_t l = { .type = PF_LIGHT_INFINITE, .intensity = pf_scale(L, (float)scale) };
+    if (!pf_is_finite3(l.intensity))
+        return pf_pbrt_error(c, PF_ERANGE, loc, "%s: radiance is not finite", what);
+    if (c->cur_object >= 0)
+        return pf_pbrt_warn(c, loc, "light inside an object definition (ignored)",
+                            "%s inside ObjectBegin is not instanced (pbrt ignores it too)", what);
+    if (pf_scene_add_light(c->scene, &l))
+        return pf_pbrt_error(c, PF_ENOMEM, loc, "out of memory");
+    return PF_OK;
+}
+
 int pf_pbrt_light(pf_pbrt_t *c, const char *type, pf_pbrt_params_t *ps, pf_pbrt_loc_t loc)
 {
+    if (!strcmp(type, "infinite")) {
+        int image = 0, rc = s_infinite(c, ps, loc, &image);
+        if (rc || !image)
+            return rc;
+        for (size_t k = 0; k < ps->n; k++)
+            ps->p[k].used = 1;
+        return pf_pbrt_warn(c, loc, "light type infinite with an image (not rendered yet)",
+                            "LightSource \"infinite\" with \"filename\" (an environment map) is not rendered: "
+                            "it adds no light");
+    }
     if (!strcmp(type, "point") || !strcmp(type, "spot"))
         return s_point_spot(c, type[0] == 's', ps, loc);
     if (!strcmp(type, "distant"))
         return s_distant(c, ps, loc);
-    static const char *later[] = { "infinite", "goniometric", "projection" };
+    static const char *later[] = { "goniometric", "projection" };
     for (size_t i = 0; i < sizeof later / sizeof *later; i++) {
         if (strcmp(type, later[i]) != 0)
             continue;

@@ -19,6 +19,9 @@
  *     photons travel along dir from outside the sphere and carry E cos A onto
  *     a tilted quad; caustic photons aimed at a sphere carry E pi r^2 onto it
  *     (its cross-section).
+ * (f) An infinite light (constant sky L): power 4 pi^2 R^2 lum(L); direct
+ *     samples give the irradiance pi L on any surface; photons bring pi L A
+ *     down onto a horizontal quad's top.
  * Statistical bounds are 5 standard errors estimated from the samples (plus
  * the 1 % the task asks of the irradiance), or dof + 6 sqrt(2 dof) for
  * chi-square; randomness is pf_rng_make(seed, PF_STREAM_TEST, i, 0). */
@@ -847,13 +850,16 @@ static void s_test_distant_light(void)
           want, 5.0 * s_stat_se(&flux));
 
     /* Caustic photons aimed at a mirror sphere of radius 0.3 (the only
-     * specular target): every one crosses its cone of rays, and the flux
-     * onto it is E pi r^2 (channel z: 4). */
+     * specular target), with a sky of radiance L added: the flux onto it is
+     * E pi r^2 from the sun and pi L 4 pi r^2 from the sky (channel z: E 4,
+     * L 0.1). */
     pf_material_t mir = pf_material_default("mirror");
     mir.type = PF_MAT_MIRROR;
     mir.ks = pf_v3s(1.0f);
     pf_sphere_t sp = { pf_v3(0.5f, 0.6f, -0.2f), 0.3f, (uint32_t)pf_scene_add_material(sc, &mir) };
     pf_scene_add_sphere(sc, &sp);
+    pf_light_t sky = { .type = PF_LIGHT_INFINITE, .intensity = pf_v3s(0.1f) };
+    pf_scene_add_light(sc, &sky);
     pf_lights_t *lt2 = s_build(sc);
     pf_target_t *targets = NULL;
     int nt = pf_specular_targets(sc, &targets);
@@ -875,13 +881,75 @@ static void s_test_distant_light(void)
         }
         s_stat_add(&sflux, got);
     }
-    double swant = 4.0 * PI_D * sp.radius * sp.radius;
-    CHECK(hits > np / 2, "only %ld of %ld aimed distant-light photons hit the sphere", hits, np);
+    double swant = 4.0 * PI_D * sp.radius * sp.radius + PI_D * 0.1 * 4.0 * PI_D * sp.radius * sp.radius;
+    CHECK(hits > np / 2, "only %ld of %ld aimed photons hit the sphere", hits, np);
     CHECK(fabs(sflux.mean - swant) <= 5.0 * s_stat_se(&sflux),
-          "distant light: aimed flux onto the sphere %.5f per photon, expected E pi r^2 = %.5f (5 se = %.3g)",
+          "distant light and sky: aimed flux onto the sphere %.5f per photon, expected (E + 4 pi L) pi r^2 = %.5f "
+          "(5 se = %.3g)",
           sflux.mean, swant, 5.0 * s_stat_se(&sflux));
     free(targets);
     pf_lights_destroy(&lt2);
+    pf_lights_destroy(&lt);
+    pf_scene_destroy(&sc);
+}
+
+/* ---- (f) an infinite light ---- */
+
+static void s_test_infinite_light(void)
+{
+    pf_scene_t *sc = pf_scene_create();
+    int fm = s_add_material(sc, pf_v3s(0.5f), pf_v3s(0.0f));
+    pf_vec3 corner = pf_v3(-1, 0, 0.5f), qu = pf_v3(2, 0, 0), qv = pf_v3(0, 0, -1);
+    s_add_quad(sc, corner, qu, qv, fm, NULL);
+    s_add_quad(sc, pf_v3(0, 1, 0), pf_v3(0.1f, 0, 0), pf_v3(0, 0, -0.1f), fm, NULL);
+    pf_light_t l;
+    memset(&l, 0, sizeof l);
+    l.type = PF_LIGHT_INFINITE;
+    l.intensity = pf_v3(0.5f, 1.0f, 2.0f);
+    pf_scene_add_light(sc, &l);
+    s_finalize(sc);
+    pf_lights_t *lt = s_build(sc);
+    pf_vec3 lo, hi;
+    pf_scene_geometry_bounds(sc, &lo, &hi);
+    double half_diag = 0.5 * pf_len(pf_sub(hi, lo));
+    double r = sqrt(pf_lights_power(lt) / (4.0 * PI_D * PI_D * pf_luminance(l.intensity)));
+    CHECK(r >= half_diag && r <= 1.02 * half_diag, "infinite light: disc radius %.5g for a bounding sphere of %.5g", r,
+          half_diag);
+    /* irradiance on a tilted normal: pi L */
+    pf_vec3 n = pf_norm(pf_v3(0.3f, 1.0f, -0.5f));
+    s_stat irr = { 0 };
+    long bad = 0;
+    const long ns = 400000;
+    for (long i = 0; i < ns; i++) {
+        float u[3];
+        s_uniforms(701, (uint64_t)i, u, 3);
+        pf_light_conn_t lc;
+        if (!pf_lights_sample_direct(lt, sc, pf_v3(0, 0, 0), u, &lc) || !isinf(lc.dist) || lc.pdf != 0.0f ||
+            fabsf(pf_len(lc.wi) - 1.0f) > 1e-5f) {
+            bad++;
+            continue;
+        }
+        s_stat_add(&irr, lc.weight.z * fmax(0.0, pf_dot(lc.wi, n)));
+    }
+    CHECK(bad == 0, "%ld infinite-light connections not (unit wi, dist = inf, pdf 0)", bad);
+    CHECK(fabs(irr.mean - PI_D * 2.0) <= 5.0 * s_stat_se(&irr),
+          "infinite light: irradiance %.5f, expected pi L = %.5f (5 se = %.3g)", irr.mean, PI_D * 2.0,
+          5.0 * s_stat_se(&irr));
+    /* photons down onto the quad's top: pi L A (channel y: L = 1) */
+    s_stat flux = { 0 };
+    for (long i = 0; i < ns; i++) {
+        float u[5];
+        s_uniforms(702, (uint64_t)i, u, 5);
+        pf_emission_t e;
+        double got = 0.0;
+        if (pf_lights_emit(lt, sc, u, &e) && e.ray.d.y < 0.0f)
+            got = s_quad_flux(&e, corner, qu, qv, 1);
+        s_stat_add(&flux, got);
+    }
+    double want = PI_D * 1.0 * 2.0;
+    CHECK(fabs(flux.mean - want) <= 5.0 * s_stat_se(&flux),
+          "infinite light: flux down onto the quad %.5f per photon, expected pi L A = %.5f (5 se = %.3g)", flux.mean,
+          want, 5.0 * s_stat_se(&flux));
     pf_lights_destroy(&lt);
     pf_scene_destroy(&sc);
 }
@@ -914,6 +982,7 @@ int main(void)
     s_test_spot_light();
     s_test_light_choice();
     s_test_distant_light();
+    s_test_infinite_light();
     s_test_empty();
     printf("%d passed, %d failed\n", s_passed, s_failed);
     return s_failed ? 1 : 0;

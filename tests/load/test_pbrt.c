@@ -352,12 +352,15 @@ static void test_lights(void)
                                    "  \"float coneangle\" 40 \"float conedelta\" 10 \"float power\" 100\n"
                                    "LightSource \"distant\" \"rgb L\" [1 2 3] \"float illuminance\" 2 \"point3 from\" [0 0 0]\n"
                                    "  \"point3 to\" [1 0 0]\nRotate 90 0 0 1\nLightSource \"distant\" \"float scale\" 3\n"
-                                   "LightSource \"infinite\"\n"
+                                   "LightSource \"infinite\" \"rgb L\" [1 2 3] \"float illuminance\" 6.2831853\n"
+                                   "LightSource \"infinite\" \"string filename\" \"sky.pfm\"\n"
                                    "AreaLightSource \"diffuse\" \"blackbody L\" 3000 \"float power\" 10\n"
                                    "Shape \"trianglemesh\" \"point3 P\" [0 0 0  2 0 0  0 2 0]\n",
                             0, &rep, &err);
-    CHECK(s && s->nlights == 4 && s->nmeshes == 1, "%s", err.msg);
-    if (s && s->nlights == 4 && s->nmeshes == 1) {
+    CHECK(s && s->nlights == 5 && s->nmeshes == 1, "%s", err.msg);
+    if (s && s->nlights == 5 && s->nmeshes == 1) {
+        /* a constant sky: L times illuminance / pi (an upward patch gets pi L) */
+        CHECK(s->lights[4].type == PF_LIGHT_INFINITE && s_vnear(s->lights[4].intensity, 2, 4, 6));
         const pf_light_t *p = &s->lights[0], *sp = &s->lights[1], *d1 = &s->lights[2], *d2 = &s->lights[3];
         /* distant: from -> to, turned by the CTM's linear part (not moved), L times illuminance (and scale) */
         CHECK(d1->type == PF_LIGHT_DISTANT && s_vnear(d1->dir, 1, 0, 0) && s_vnear(d1->intensity, 2, 4, 6));
@@ -375,7 +378,7 @@ static void test_lights(void)
                   fabsf(sp->intensity.z / sp->intensity.y - 1.0f) < 0.1f,
               "6500 K is near white: %g %g %g", sp->intensity.x, sp->intensity.y, sp->intensity.z);
     }
-    CHECK(s_warned(&rep, "light type distant") == 0 && s_warned(&rep, "light type infinite") == 1);
+    CHECK(s_warned(&rep, "light type distant") == 0 && s_warned(&rep, "light type infinite with an image") == 1);
     pf_scene_destroy(&s);
 }
 

@@ -151,8 +151,11 @@ static void test_prims(void)
               V3A(q->pos[1]), V3A(q->pos[2]));
     }
 
-    CHECK(sc->nlights == 3, "three lights, got %zu", sc->nlights);
-    if (sc->nlights == 3) {
+    CHECK(sc->nlights == 4, "four lights, got %zu", sc->nlights);
+    if (sc->nlights == 4)
+        CHECK(sc->lights[3].type == PF_LIGHT_INFINITE && near3(sc->lights[3].intensity, pf_v3(0.25f, 0.5f, 1), 0),
+              "infinite light radiance " V3F, V3A(sc->lights[3].intensity));
+    if (sc->nlights >= 3) {
         const pf_light_t *d = &sc->lights[2];
         CHECK(d->type == PF_LIGHT_DISTANT && near3(d->dir, pf_v3(0, -0.6f, 0.8f), 1e-6f) &&
                   near3(d->intensity, pf_v3(1, 2, 3), 0),
@@ -457,6 +460,8 @@ static void test_bad_inline(void)
           "{ \"lights\": [ { \"type\": \"distant\",\n \"direction\": [0, 0, 0], \"irradiance\": 1 } ] }\n" },
         { 2, "distant light is missing the required key 'irradiance'",
           "{ \"lights\": [\n { \"type\": \"distant\", \"direction\": [0, -1, 0] } ] }\n" },
+        { 2, "unknown key 'direction' in infinite light",
+          "{ \"lights\": [ { \"type\": \"infinite\", \"radiance\": 1,\n \"direction\": [0, -1, 0] } ] }\n" },
         { 2, "unknown key 'position' in distant light",
           "{ \"lights\": [ { \"type\": \"distant\", \"direction\": [0, -1, 0], \"irradiance\": 1,\n \"position\": [0, 0, 0] } ] }\n" },
         { 2, "'direction' in spot light must not be zero",

@@ -1,7 +1,7 @@
 /* test_blobs.c: the scene blob and the photon-map blob (ctest `blobs`).
  *
  * Scene blob: a small scene built in code (materials of every kind, a mesh
- * with normals and one without, a sphere, a point, a spot and a distant light, a
+ * with normals and one without, a sphere, a point, a spot, a distant and an infinite light, a
  * left-handed thin-lens camera whose fov spans the shorter axis)
  * and the shipped cornell-spheres scene round-trip into scenes equal in every
  * array, and re-serialize to the same bytes; every truncation (all lengths
@@ -152,6 +152,8 @@ static pf_scene_t *s_tiny_scene(void)
                       .dir = pf_norm(pf_v3(-1, -1, -1)), .cos_inner = 0.95f, .cos_outer = 0.9f };
     pf_scene_add_light(s, &l);
     l = (pf_light_t){ .type = PF_LIGHT_DISTANT, .intensity = pf_v3(3, 2, 1), .dir = pf_norm(pf_v3(0.3f, -1, 0.2f)) };
+    pf_scene_add_light(s, &l);
+    l = (pf_light_t){ .type = PF_LIGHT_INFINITE, .intensity = pf_v3(0.5f, 0.6f, 0.7f) };
     pf_scene_add_light(s, &l);
     s->camera = (pf_camera_desc_t){ .pos = pf_v3(0, 1, 4), .look_at = pf_v3(0, 0.5f, 0), .up = pf_v3(0, 1, 0),
                                     .vfov_deg = 45.0f, .fov_shorter = 1, .left_handed = 1, .lens_radius = 0.05f,
@@ -412,7 +414,7 @@ static void test_scene_blob(void)
         { o.sphere0_radius, -4, 0, 0.0f, "sphere 0: centre must be finite and radius > 0", "radius 0 (finalize)" },
         { o.sphere0_mat, 4, 9, 0, "sphere 0 material index 9", "sphere material" },
         { o.nlights, 4, 0x10000000u, 0, "lights need at least", "light count" },
-        { o.light0_type, 1, 5, 0, "light 0 type 5 is not a light type (0..2)", "light type" },
+        { o.light0_type, 1, 5, 0, "light 0 type 5 is not a light type (0..3)", "light type" },
     };
     for (size_t i = 0; i < sizeof patches / sizeof patches[0]; i++)
         s_scene_patch(&b, &patches[i]);

@@ -3,7 +3,7 @@
  * stress.c; each group of cases lives in a file of its own:
  * stress_analytic.c (furnace, plane, invariance), stress_geometry.c
  * (geometry, degenerate input), stress_kdtree.c (kd-tree extremes) and
- * stress_lights.c (distant light).
+ * stress_lights.c (distant and infinite lights).
  *
  * Every file checks through check.h shared (PF_CHECK_SHARED); the counts
  * live in test_stress.c, so the closing line counts the whole program. */
@@ -31,6 +31,7 @@ void stress_test_geometry(void);
 void stress_test_degenerate(void);
 void stress_test_kdtree(void);
 void stress_test_distant(void); /* stress_lights.c */
+void stress_test_sky(void);     /* stress_lights.c */
 
 /* Scene building: materials, watertight boxes, spheres, point lights, the
  * camera, and settings for a small, fast render. */

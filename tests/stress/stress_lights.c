@@ -1,5 +1,6 @@
-/* stress_lights.c: the stress group for lights beyond area, point and spot
- * ("distant"; docs/stress.md lists the bounds and the values measured).
+/* stress_lights.c: the stress groups for lights beyond area, point and spot
+ * ("distant" and "sky"; docs/stress.md lists the bounds and the values
+ * measured).
  *
  * A diffuse plane y = 0 (kd 0.5, 6 x 6) under a distant light (the sun)
  * shining down at 25 degrees from the vertical with irradiance E: every
@@ -14,7 +15,16 @@
  * render equals
  * its direct term bit for bit. A grey blocker then sends light into the
  * shadow (plane, blocker's underside, plane: the final gather over photons
- * from the sun), which must be there and stay well below the lit plane. */
+ * from the sun), which must be there and stay well below the lit plane.
+ *
+ * The sky's furnace: a diffuse sphere of albedo a alone under a constant sky
+ * of radiance L is convex, so it sees nothing but the sky: its radiance is
+ * a L exactly, with all terms (an escaping gather ray that counted the sky
+ * again would make it 2 a L); the background reads L; the photon pass
+ * stores 4 pi^2 r^2 L on it (pi L on each point of its area); the photon
+ * map agrees. A lossless glass sphere alone under the sky reads L in every
+ * pixel (the sky seen through S, every path ending in it), but for the few
+ * pixels at its rim where the depth limit cuts the inner reflections. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -211,3 +221,112 @@ void stress_test_distant(void)
     s_test_sun_plane();
     s_test_sun_shadow();
 }
+
+#define S_SKY 0.8f /* the sky's radiance */
+
+static pf_scene_t *s_sky_scene(pf_material_t m, float r)
+{
+    pf_scene_t *scene = pf_scene_create();
+    stress_sphere(scene, pf_v3(0, 0, 0), r, stress_material(scene, m));
+    pf_light_t l = { .type = PF_LIGHT_INFINITE, .intensity = pf_v3s(S_SKY) };
+    PF_CHECK(pf_scene_add_light(scene, &l) == PF_OK);
+    stress_camera(scene, pf_v3(0.3f, 0.8f, 4.0f), pf_v3(0, 0, 0), pf_v3(0, 1, 0), 40.0f);
+    pf_error_t err = { { 0 } };
+    CHECK(pf_scene_finalize(scene, &err) == PF_OK, "finalize: %s", err.msg);
+    return scene;
+}
+
+/* Whether the camera's rays through a pixel's 5 x 5 points all hit the
+ * sphere of radius r at the origin (1), all miss it (0), or differ (-1). */
+static int s_sphere_class(const pf_camera_t *cam, int px, int py, float r)
+{
+    int cls = -2;
+    for (int j = 0; j < 5; j++)
+        for (int i = 0; i < 5; i++) {
+            pf_ray_t ray = pf_camera_ray(cam, (float)px + i / 4.0f, (float)py + j / 4.0f);
+            float along = -pf_dot(ray.o, ray.d);
+            int c = pf_len2(ray.o) - along * along < r * r * 0.999f;
+            cls = cls == -2 || cls == c ? c : -1;
+        }
+    return cls;
+}
+
+static void s_test_sky_furnace(void)
+{
+    const float a = 0.6f, r = 1.0f;
+    pf_scene_t *scene = s_sky_scene(stress_diffuse("sphere", a, 0.0f), r);
+    pf_settings_t s = stress_settings(scene, 64, 16, 200000, 8);
+    stress_job_t job;
+    if (stress_job_begin(&job, "sky furnace", scene, &s) == PF_OK) {
+        /* a photon hits the sphere with probability p = r^2 / R^2 (R: the
+         * bounding sphere of its box, sqrt(3) r widened by 1 %) */
+        double want = 4.0 * PF_PI * PF_PI * r * r * S_SKY, flux = stress_map_power(job.fr.maps.global);
+        double big = sqrt(3.0) * r * 1.01, p = (r * r) / (big * big), sigma = sqrt((1.0 - p) / ((double)s.photons * p));
+        printf("sky furnace: stored flux %.5f, expected 4 pi^2 r^2 L = %.5f (ratio %.4f, sigma %.4f, bound 4 sigma)\n",
+               flux, want, flux / want, sigma);
+        CHECK(fabs(flux / want - 1.0) < 4.0 * sigma, "sky furnace: stored flux %.5f, expected %.5f", flux, want);
+        pf_image_t full, direct, pm;
+        stress_job_render(&job, "sky furnace all", PF_TERM_ALL, &full);
+        stress_job_render(&job, "sky furnace direct", PF_TERM_DIRECT, &direct);
+        stress_job_render(&job, "sky furnace photon map", PF_TERM_PHOTONMAP, &pm);
+        pf_camera_t cam = pf_camera_make(&scene->camera, full.width, full.height);
+        size_t n_sphere = 0, n_sky = 0, bad_sky = 0, not_direct = 0;
+        double sum = 0.0, sum_pm = 0.0;
+        for (int py = 0; py < full.height; py++)
+            for (int px = 0; px < full.width; px++) {
+                int cls = s_sphere_class(&cam, px, py, r);
+                size_t k = 3 * ((size_t)py * (size_t)full.width + (size_t)px);
+                if (cls == 0) {
+                    n_sky++;
+                    bad_sky += full.rgb[k] != S_SKY || direct.rgb[k] != 0.0f;
+                } else if (cls == 1) {
+                    n_sphere++;
+                    sum += full.rgb[k];
+                    sum_pm += pm.rgb[k];
+                    not_direct += full.rgb[k] != direct.rgb[k];
+                }
+            }
+        double mean = sum / (double)n_sphere / (a * S_SKY), mean_pm = sum_pm / (double)n_sphere / (a * S_SKY);
+        printf("sky furnace: %zu sky pixels, %zu not L; %zu sphere pixels, mean radiance / a L = %.4f (bound 1 +- "
+               "0.02), photon map %.4f (bound 1 +- 0.03), %zu differ from the direct term\n",
+               n_sky, bad_sky, n_sphere, mean, mean_pm, not_direct);
+        CHECK(n_sky > 1000 && bad_sky == 0, "sky furnace: %zu of %zu background pixels not L", bad_sky, n_sky);
+        CHECK(n_sphere > 1000 && fabs(mean - 1.0) <= 0.02, "sky furnace: sphere radiance %.4f of a L", mean);
+        CHECK(fabs(mean_pm - 1.0) <= 0.03, "sky furnace: photon-map radiance %.4f of a L", mean_pm);
+        /* a convex object's gather rays all escape, and they must count nothing */
+        CHECK(not_direct == 0, "sky furnace: %zu sphere pixels get more than direct light", not_direct);
+        pf_image_free(&full);
+        pf_image_free(&direct);
+        pf_image_free(&pm);
+        stress_job_end(&job);
+    }
+    pf_scene_destroy(&scene);
+
+    /* lossless glass: L in every pixel */
+    scene = s_sky_scene(stress_glass("glass", 1.5f), r);
+    s = stress_settings(scene, 48, 4, 50000, 8);
+    s.caustic_photons = 50000;
+    pf_image_t img;
+    if (stress_render("sky glass", scene, &s, PF_TERM_ALL, &img, NULL) == PF_OK) {
+        size_t n = (size_t)img.width * (size_t)img.height * 3, off = 0, above = 0;
+        double worst = 0.0, mean = 0.0;
+        for (size_t k = 0; k < n; k++) {
+            double ex = img.rgb[k] / S_SKY - 1.0;
+            worst = fmax(worst, fabs(ex));
+            off += fabs(ex) > 1e-3;
+            above += ex > 1e-4;
+            mean += img.rgb[k] / S_SKY / (double)n;
+        }
+        /* Paths grazing the rim bounce inside many times at a high Fresnel
+         * reflectance: the depth limit (16) loses a few per cent there. */
+        printf("sky glass: mean / L %.5f (bound 1 - 2e-3), %zu of %zu channels off L by > 1e-3 (bound 1 %%), %zu "
+               "above L (bound 0), worst %.2e\n",
+               mean, off, n, above, worst);
+        CHECK(fabs(mean - 1.0) < 2e-3 && off <= n / 100 && above == 0,
+              "sky glass: mean %.5f of L, %zu channels off L, %zu above it", mean, off, above);
+        pf_image_free(&img);
+    }
+    pf_scene_destroy(&scene);
+}
+
+void stress_test_sky(void) { s_test_sky_furnace(); }
