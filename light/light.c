@@ -14,7 +14,8 @@
  * of the sphere, perpendicular to its direction; caustic photons come from
  * the discs the specular targets cast on that plane. An infinite light does
  * the same for a direction drawn uniformly over the sphere; its direct light
- * samples directions uniformly over the sphere too, and it is sampled by
+ * samples directions cosine-weighted about the receiver's normal (uniformly
+ * over the sphere without one), and it is sampled by
  * light sampling alone (pdf 0, as a delta light: a rough conductor's BSDF
  * ray that escapes adds nothing). */
 #include "light/light.h"
@@ -216,6 +217,12 @@ static void s_tri_point(const pf_scene_t *scene, const s_entry *e, float u1, flo
 int pf_lights_sample_direct(const pf_lights_t *self, const pf_scene_t *scene, pf_vec3 x, const float u[3],
                             pf_light_conn_t *out)
 {
+    return pf_lights_sample_direct_at(self, scene, x, pf_v3s(0.0f), u, out);
+}
+
+int pf_lights_sample_direct_at(const pf_lights_t *self, const pf_scene_t *scene, pf_vec3 x, pf_vec3 n,
+                               const float u[3], pf_light_conn_t *out)
+{
     if (self->n == 0)
         return 0;
     double pmf;
@@ -250,11 +257,19 @@ int pf_lights_sample_direct(const pf_lights_t *self, const pf_scene_t *scene, pf
         return 1;
     }
     if (e->kind == S_INFINITE) {
-        /* uniform over the sphere: L / (pdf pmf), pdf = 1 / (4 pi) */
-        out->wi = pf_sample_sphere(u[1], u[2]);
         out->dist = INFINITY;
-        out->weight = pf_scale(l->intensity, 4.0f * PF_PI / (float)pmf);
         out->pdf = 0.0f;
+        if (pf_is_black(n)) { /* uniform over the sphere: L / (pdf pmf), pdf = 1 / (4 pi) */
+            out->wi = pf_sample_sphere(u[1], u[2]);
+            out->weight = pf_scale(l->intensity, 4.0f * PF_PI / (float)pmf);
+            return 1;
+        }
+        /* cosine-weighted about n: L / (pdf pmf), pdf = cos / pi */
+        pf_vec3 local = pf_sample_cosine(u[1], u[2]);
+        if (!(local.z > 0.0f))
+            return 0;
+        out->wi = pf_to_world(local, n);
+        out->weight = pf_scale(l->intensity, PF_PI / (local.z * (float)pmf));
         return 1;
     }
     pf_vec3 d = pf_sub(l->pos, x);

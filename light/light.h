@@ -42,6 +42,14 @@ typedef struct pf_light_conn {
 int pf_lights_sample_direct(const pf_lights_t *self, const pf_scene_t *scene, pf_vec3 x, const float u[3],
                             pf_light_conn_t *out);
 
+/* The same at a receiver whose (shading) normal n is known: an infinite
+ * light then draws its directions cosine-weighted about n rather than
+ * uniformly over the sphere (what lies below n gets no sample; the caller
+ * weighs by cos about n, so that is no loss). n zero: as
+ * pf_lights_sample_direct. Every other light samples as there. */
+int pf_lights_sample_direct_at(const pf_lights_t *self, const pf_scene_t *scene, pf_vec3 x, pf_vec3 n,
+                               const float u[3], pf_light_conn_t *out);
+
 /* The solid-angle pdf with which pf_lights_sample_direct, called at x,
  * returns the point p on triangle prim of mesh geom (a hit's geom and
  * prim): the emitter's probability times its area pdf, converted to solid

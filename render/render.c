@@ -60,7 +60,7 @@
  * it, never a ray. The sky is an emitter every escaping ray reaches, as if
  * it were an area light's front at infinity: a camera path through S only
  * that escapes sees it (emitted, L S* E); x's light sampling draws
- * directions over the sphere (direct, L D S* E), and a rough conductor's
+ * directions cosine-weighted about x's normal (direct, L D S* E), and a rough conductor's
  * BSDF ray that escapes counts nothing (the sky's light samples carry all
  * of L C S* E: no MIS); gather rays that escape count nothing (L D E is
  * direct, L (S|C)+ D E caustic: the caustic photons come from the sky too);
@@ -178,7 +178,7 @@ static pf_vec3 s_direct(s_state *st, const pf_hit_t *h, const pf_material_t *m, 
     for (int i = 0; i < n; i++) {
         float u[3] = { s_u(st), s_u(st), s_u(st) };
         pf_light_conn_t lc;
-        if (!pf_lights_sample_direct(c->lights, c->scene, h->p, u, &lc))
+        if (!pf_lights_sample_direct_at(c->lights, c->scene, h->p, ns, u, &lc))
             continue;
         float cos_x = pf_dot(lc.wi, ns);
         if (cos_x <= 0.0f || pf_dot(lc.wi, nf) <= 0.0f)
@@ -384,7 +384,7 @@ static pf_vec3 s_rough(s_state *st, const pf_hit_t *h, const pf_material_t *m, p
     for (int i = 0; (c->terms & PF_TERM_DIRECT) && i < n; i++) {
         float u[3] = { s_u(st), s_u(st), s_u(st) };
         pf_light_conn_t lc;
-        if (!pf_lights_sample_direct(c->lights, c->scene, h->p, u, &lc))
+        if (!pf_lights_sample_direct_at(c->lights, c->scene, h->p, ns, u, &lc))
             continue;
         float cos_x = pf_dot(lc.wi, ns);
         if (cos_x <= 0.0f || pf_dot(lc.wi, nf) <= 0.0f)

@@ -20,7 +20,8 @@
  *     a tilted quad; caustic photons aimed at a sphere carry E pi r^2 onto it
  *     (its cross-section).
  * (f) An infinite light (constant sky L): power 4 pi^2 R^2 lum(L); direct
- *     samples give the irradiance pi L on any surface; photons bring pi L A
+ *     samples give the irradiance pi L on any surface (each one, when
+ *     cosine-weighted about its normal); photons bring pi L A
  *     down onto a horizontal quad's top.
  * Statistical bounds are 5 standard errors estimated from the samples (plus
  * the 1 % the task asks of the irradiance), or dof + 6 sqrt(2 dof) for
@@ -930,8 +931,11 @@ static void s_test_infinite_light(void)
             continue;
         }
         s_stat_add(&irr, lc.weight.z * fmax(0.0, pf_dot(lc.wi, n)));
+        /* cosine-weighted about a known normal: every sample gives pi L */
+        bad += !pf_lights_sample_direct_at(lt, sc, pf_v3(0, 0, 0), n, u, &lc) ||
+               s_rel(lc.weight.z * pf_dot(lc.wi, n), PI_D * 2.0) > 1e-4;
     }
-    CHECK(bad == 0, "%ld infinite-light connections not (unit wi, dist = inf, pdf 0)", bad);
+    CHECK(bad == 0, "%ld infinite-light connections not (unit wi, dist = inf, pdf 0) or, about n, not pi L", bad);
     CHECK(fabs(irr.mean - PI_D * 2.0) <= 5.0 * s_stat_se(&irr),
           "infinite light: irradiance %.5f, expected pi L = %.5f (5 se = %.3g)", irr.mean, PI_D * 2.0,
           5.0 * s_stat_se(&irr));
