@@ -15,9 +15,9 @@
  * the discs the specular targets cast on that plane. An infinite light does
  * the same for a direction drawn uniformly over the sphere; its direct light
  * samples directions cosine-weighted about the receiver's normal (uniformly
- * over the sphere without one), and it is sampled by
- * light sampling alone (pdf 0, as a delta light: a rough conductor's BSDF
- * ray that escapes adds nothing). */
+ * over the sphere without one), with that pdf for MIS at rough conductors
+ * (pf_lights_sky_pdf). All infinite lights make one entry, the last, of
+ * their summed radiance. */
 #include "light/light.h"
 
 #include <float.h>
@@ -49,7 +49,8 @@ struct pf_lights {
      * lights shine through the disc it casts. */
     pf_vec3 center;
     float radius;
-    pf_vec3 sky; /* the radiance of the infinite lights, summed */
+    pf_vec3 sky;   /* the radiance of the infinite lights, summed: one entry, the last */
+    float sky_pmf; /* that entry's probability (0: none) */
 };
 
 float pf_spot_falloff(const pf_light_t *l, float cos_theta)
@@ -149,18 +150,31 @@ pf_lights_t *pf_lights_build(const pf_scene_t *scene)
         double p = s_light_power(li, self->radius);
         if (!(p > 0.0))
             continue;
-        s_kind kind = li->type == PF_LIGHT_DISTANT ? S_DISTANT : li->type == PF_LIGHT_INFINITE ? S_INFINITE : S_POINT;
-        if (kind == S_INFINITE)
+        if (li->type == PF_LIGHT_INFINITE) { /* constant skies add up to one */
             self->sky = pf_add(self->sky, li->intensity);
+            continue;
+        }
+        s_kind kind = li->type == PF_LIGHT_DISTANT ? S_DISTANT : S_POINT;
         self->entries[self->n] = (s_entry){ .kind = kind, .light = (uint32_t)l, .axis = li->dir, .cos_max = -1.0f };
         s_aim_at_scene(self, scene, &self->entries[self->n]);
         self->cdf[self->n++] = acc;
         acc += p;
     }
+    pf_light_t sky = { .type = PF_LIGHT_INFINITE, .intensity = self->sky };
+    double psky = s_light_power(&sky, self->radius);
+    if (psky > 0.0) {
+        self->entries[self->n] = (s_entry){ .kind = S_INFINITE, .cos_max = -1.0f };
+        self->cdf[self->n++] = acc;
+        acc += psky;
+    } else {
+        self->sky = pf_v3s(0.0f); /* no geometry to light: no sky either */
+    }
     self->power = acc;
     for (size_t i = 0; i < self->n; i++)
         self->cdf[i] /= acc;
     self->cdf[self->n] = 1.0;
+    if (psky > 0.0)
+        self->sky_pmf = (float)(1.0 - self->cdf[self->n - 1]);
     return self;
 }
 
@@ -179,6 +193,13 @@ pf_vec3 pf_lights_sky(const pf_lights_t *self, pf_vec3 d)
 {
     (void)d; /* constant for now; an environment image would look d up */
     return self->sky;
+}
+
+float pf_lights_sky_pdf(const pf_lights_t *self, pf_vec3 n, pf_vec3 d)
+{
+    if (pf_is_black(n))
+        return self->sky_pmf / (4.0f * PF_PI);
+    return self->sky_pmf * fmaxf(0.0f, pf_dot(n, d)) * PF_INV_PI;
 }
 size_t pf_lights_count(const pf_lights_t *self) { return self->n; }
 
@@ -247,21 +268,12 @@ int pf_lights_sample_direct_at(const pf_lights_t *self, const pf_scene_t *scene,
         out->pdf = pdf_area * d2 / cos_l;
         return 1;
     }
-    const pf_light_t *l = &scene->lights[e->light];
-    if (e->kind == S_DISTANT) {
-        /* E arrives along dir alone: the delta's weight is E itself. */
-        out->wi = pf_neg(l->dir);
-        out->dist = INFINITY;
-        out->weight = pf_scale(l->intensity, 1.0f / (float)pmf);
-        out->pdf = 0.0f;
-        return 1;
-    }
     if (e->kind == S_INFINITE) {
         out->dist = INFINITY;
-        out->pdf = 0.0f;
         if (pf_is_black(n)) { /* uniform over the sphere: L / (pdf pmf), pdf = 1 / (4 pi) */
             out->wi = pf_sample_sphere(u[1], u[2]);
-            out->weight = pf_scale(l->intensity, 4.0f * PF_PI / (float)pmf);
+            out->weight = pf_scale(self->sky, 4.0f * PF_PI / (float)pmf);
+            out->pdf = (float)pmf / (4.0f * PF_PI);
             return 1;
         }
         /* cosine-weighted about n: L / (pdf pmf), pdf = cos / pi */
@@ -269,7 +281,17 @@ int pf_lights_sample_direct_at(const pf_lights_t *self, const pf_scene_t *scene,
         if (!(local.z > 0.0f))
             return 0;
         out->wi = pf_to_world(local, n);
-        out->weight = pf_scale(l->intensity, PF_PI / (local.z * (float)pmf));
+        out->weight = pf_scale(self->sky, PF_PI / (local.z * (float)pmf));
+        out->pdf = (float)pmf * local.z * PF_INV_PI;
+        return 1;
+    }
+    const pf_light_t *l = &scene->lights[e->light];
+    if (e->kind == S_DISTANT) {
+        /* E arrives along dir alone: the delta's weight is E itself. */
+        out->wi = pf_neg(l->dir);
+        out->dist = INFINITY;
+        out->weight = pf_scale(l->intensity, 1.0f / (float)pmf);
+        out->pdf = 0.0f;
         return 1;
     }
     pf_vec3 d = pf_sub(l->pos, x);
@@ -357,7 +379,7 @@ int pf_lights_emit(const pf_lights_t *self, const pf_scene_t *scene, const float
         out->n = n;
         return 1;
     }
-    const pf_light_t *l = &scene->lights[e->light];
+    const pf_light_t *l = e->kind == S_INFINITE ? NULL : &scene->lights[e->light]; /* the sky: self->sky */
     out->perr = pf_v3s(0.0f);
     out->n = pf_v3s(0.0f);
     if (e->kind == S_DISTANT) {
@@ -371,7 +393,7 @@ int pf_lights_emit(const pf_lights_t *self, const pf_scene_t *scene, const float
          * L pi R^2 / (pdf_dir pmf), pdf_dir = 1 / (4 pi) */
         pf_vec3 d = pf_sample_sphere(u[1], u[2]);
         out->ray = (pf_ray_t){ s_disc_point(self, d, self->center, self->radius, u[3], u[4]), d };
-        out->flux = pf_scale(l->intensity, 4.0f * PF_PI * PF_PI * self->radius * self->radius / (float)pmf);
+        out->flux = pf_scale(self->sky, 4.0f * PF_PI * PF_PI * self->radius * self->radius / (float)pmf);
         return 1;
     }
     if (l->type == PF_LIGHT_POINT && e->cos_max > -1.0f) {
@@ -491,11 +513,12 @@ int pf_lights_emit_targeted(const pf_lights_t *self, const pf_scene_t *scene, co
         return 0;
     double pmf;
     const s_entry *e = &self->entries[s_pick(self, u[0], &pmf)];
-    const pf_light_t *le = e->kind == S_AREA ? NULL : &scene->lights[e->light];
-    if (e->kind == S_DISTANT)
-        return s_distant_targeted(self, le->dir, le->intensity, pmf, targets, ntargets, u, out);
+    if (e->kind == S_DISTANT) {
+        const pf_light_t *ld = &scene->lights[e->light];
+        return s_distant_targeted(self, ld->dir, ld->intensity, pmf, targets, ntargets, u, out);
+    }
     if (e->kind == S_INFINITE) /* a direction uniform over the sphere, pdf 1 / (4 pi) */
-        return s_distant_targeted(self, pf_sample_sphere(u[1], u[2]), pf_scale(le->intensity, 4.0f * PF_PI), pmf,
+        return s_distant_targeted(self, pf_sample_sphere(u[1], u[2]), pf_scale(self->sky, 4.0f * PF_PI), pmf,
                                   targets, ntargets, u, out);
     pf_vec3 p, n = pf_v3s(0.0f), perr = pf_v3s(0.0f);
     const pf_light_t *l = NULL;

@@ -22,6 +22,12 @@ void pf_lights_destroy(pf_lights_t **self_p);
  * (zero without any). */
 pf_vec3 pf_lights_sky(const pf_lights_t *self, pf_vec3 d);
 
+/* The solid-angle pdf with which pf_lights_sample_direct_at, given the
+ * normal n (zero: pf_lights_sample_direct), returns the sky direction d:
+ * the sky's probability times its direction pdf; 0 without a sky. (All
+ * infinite lights make one emitter: their radiances add.) */
+float pf_lights_sky_pdf(const pf_lights_t *self, pf_vec3 n, pf_vec3 d);
+
 /* Total emitted power (W, luminance-weighted) and the number of emitters. */
 double pf_lights_power(const pf_lights_t *self);
 size_t pf_lights_count(const pf_lights_t *self);
@@ -32,8 +38,8 @@ typedef struct pf_light_conn {
     float dist;      /* distance to the light point; INFINITY for a distant or infinite light (a shadow
                       * ray unoccluded to infinity) */
     pf_vec3 weight;  /* Le cos_l / (d^2 pdf), i.e. incident radiance over pdf */
-    float pdf;       /* the solid-angle pdf of wi (area lights), 0 for point, spot and distant lights (a delta)
-                      * and for infinite lights (sampled by light sampling alone, never by BSDF rays) */
+    float pdf;       /* the solid-angle pdf of wi (area and infinite lights), 0 for point, spot and distant
+                      * lights (a delta) */
 } pf_light_conn_t;
 
 /* Samples one emitter by power and a point on it, as seen from x. Returns 0

@@ -925,7 +925,8 @@ static void s_test_infinite_light(void)
         float u[3];
         s_uniforms(701, (uint64_t)i, u, 3);
         pf_light_conn_t lc;
-        if (!pf_lights_sample_direct(lt, sc, pf_v3(0, 0, 0), u, &lc) || !isinf(lc.dist) || lc.pdf != 0.0f ||
+        if (!pf_lights_sample_direct(lt, sc, pf_v3(0, 0, 0), u, &lc) || !isinf(lc.dist) ||
+            s_rel(lc.pdf, 1.0 / (4.0 * PI_D)) > 1e-5 || lc.pdf != pf_lights_sky_pdf(lt, pf_v3s(0.0f), lc.wi) ||
             fabsf(pf_len(lc.wi) - 1.0f) > 1e-5f) {
             bad++;
             continue;
@@ -933,9 +934,11 @@ static void s_test_infinite_light(void)
         s_stat_add(&irr, lc.weight.z * fmax(0.0, pf_dot(lc.wi, n)));
         /* cosine-weighted about a known normal: every sample gives pi L */
         bad += !pf_lights_sample_direct_at(lt, sc, pf_v3(0, 0, 0), n, u, &lc) ||
-               s_rel(lc.weight.z * pf_dot(lc.wi, n), PI_D * 2.0) > 1e-4;
+               s_rel(lc.weight.z * pf_dot(lc.wi, n), PI_D * 2.0) > 1e-4 ||
+               fabs(lc.pdf - pf_lights_sky_pdf(lt, n, lc.wi)) > 1e-5 * (1.0 / PI_D); /* rounding of cos */
     }
-    CHECK(bad == 0, "%ld infinite-light connections not (unit wi, dist = inf, pdf 0) or, about n, not pi L", bad);
+    CHECK(bad == 0, "%ld infinite-light connections not (unit wi, dist = inf, pdf 1 / (4 pi) = pf_lights_sky_pdf) "
+                    "or, about n, not pi L with pdf cos / pi", bad);
     CHECK(fabs(irr.mean - PI_D * 2.0) <= 5.0 * s_stat_se(&irr),
           "infinite light: irradiance %.5f, expected pi L = %.5f (5 se = %.3g)", irr.mean, PI_D * 2.0,
           5.0 * s_stat_se(&irr));
