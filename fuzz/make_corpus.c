@@ -237,6 +237,10 @@ static pf_scene_t *s_tiny_scene(void)
     pf_light_t l = { .type = PF_LIGHT_SPOT, .pos = pf_v3(0.5f, 0.5f, 2), .intensity = pf_v3s(3),
                      .dir = pf_v3(0, 0, -1), .cos_inner = 0.9f, .cos_outer = 0.8f };
     pf_scene_add_light(s, &l);
+    l = (pf_light_t){ .type = PF_LIGHT_DISTANT, .intensity = pf_v3s(2), .dir = pf_norm(pf_v3(0.2f, 0.1f, -1)) };
+    pf_scene_add_light(s, &l);
+    l = (pf_light_t){ .type = PF_LIGHT_INFINITE, .intensity = pf_v3s(0.5f) };
+    pf_scene_add_light(s, &l);
     pf_error_t err;
     if (pf_scene_finalize(s, &err)) {
         fprintf(stderr, "make_corpus: tiny scene: %s\n", err.msg);

@@ -2,9 +2,22 @@
  *
  * Emitters are sampled by their share of the total power (luminance of the
  * emitted flux): an area triangle emits pi A lum(Le), a point light
- * 4 pi lum(I), a spot 2 pi lum(I) times the integral of its falloff. One
- * table serves direct lighting and photon emission so both see the same
- * distribution. */
+ * 4 pi lum(I), a spot 2 pi lum(I) times the integral of its falloff, a
+ * distant light pi R^2 lum(E): the flux of its irradiance E through the
+ * disc that the scene's bounding sphere (radius R) casts, which is all of
+ * it the scene can receive, an infinite light (a constant sky of radiance
+ * L) 4 pi^2 R^2 lum(L): pi L through that disc from each of 4 pi
+ * directions. One table serves direct lighting and photon emission so both
+ * see the same distribution.
+ *
+ * A distant light emits photons from that disc, placed on the light's side
+ * of the sphere, perpendicular to its direction; caustic photons come from
+ * the discs the specular targets cast on that plane. An infinite light does
+ * the same for a direction drawn uniformly over the sphere; its direct light
+ * samples directions cosine-weighted about the receiver's normal (uniformly
+ * over the sphere without one), with that pdf for MIS at rough conductors
+ * (pf_lights_sky_pdf). All infinite lights make one entry, the last, of
+ * their summed radiance. */
 #include "light/light.h"
 
 #include <float.h>
@@ -12,12 +25,12 @@
 
 #include "base/sampling.h"
 
-typedef enum { S_AREA, S_POINT } s_kind;
+typedef enum { S_AREA, S_POINT, S_DISTANT, S_INFINITE } s_kind;
 
 typedef struct s_entry {
     s_kind kind;
     uint32_t mesh, tri; /* area */
-    uint32_t light;     /* point or spot */
+    uint32_t light;     /* point, spot, distant or infinite */
     float area;
     /* A point light outside the scene's bounding sphere emits photons only
      * into the cone that holds the sphere (cos_max > -1; axis towards the
@@ -32,6 +45,12 @@ struct pf_lights {
     size_t n;
     size_t narea; /* entries [0, narea) are the area lights, sorted by (mesh, tri) */
     double power;
+    /* The scene's bounding sphere (radius 0 without geometry): distant
+     * lights shine through the disc it casts. */
+    pf_vec3 center;
+    float radius;
+    pf_vec3 sky;   /* the radiance of the infinite lights, summed: one entry, the last */
+    float sky_pmf; /* that entry's probability (0: none) */
 };
 
 float pf_spot_falloff(const pf_light_t *l, float cos_theta)
@@ -44,9 +63,13 @@ float pf_spot_falloff(const pf_light_t *l, float cos_theta)
     return t * t * (3.0f - 2.0f * t);
 }
 
-static double s_light_power(const pf_light_t *l)
+static double s_light_power(const pf_light_t *l, float radius)
 {
     double lum = pf_luminance(l->intensity);
+    if (l->type == PF_LIGHT_DISTANT)
+        return PF_PI * (double)radius * (double)radius * lum;
+    if (l->type == PF_LIGHT_INFINITE)
+        return 4.0 * PF_PI * PF_PI * (double)radius * (double)radius * lum;
     if (l->type == PF_LIGHT_POINT)
         return 4.0 * PF_PI * lum;
     /* Midpoint rule over cos theta in [cos_outer, 1]. */
@@ -57,20 +80,30 @@ static double s_light_power(const pf_light_t *l)
     return 2.0 * PF_PI * lum * sum;
 }
 
-/* Points a point light's emission at the scene when it lies outside its
- * bounding sphere (see s_entry). */
-static void s_aim_at_scene(const pf_scene_t *scene, s_entry *e)
+/* The scene's bounding sphere: centre and radius (0 without geometry). */
+static void s_bounding_sphere(const pf_scene_t *scene, pf_vec3 *c, float *r)
 {
-    const pf_light_t *l = &scene->lights[e->light];
-    if (l->type != PF_LIGHT_POINT)
-        return;
     pf_vec3 lo, hi;
     pf_scene_geometry_bounds(scene, &lo, &hi);
-    if (!(lo.x <= hi.x))
-        return; /* no geometry */
-    pf_vec3 c = pf_scale(pf_add(lo, hi), 0.5f), to = pf_sub(c, l->pos);
+    if (!(lo.x <= hi.x)) {
+        *c = pf_v3s(0.0f);
+        *r = 0.0f;
+        return;
+    }
+    *c = pf_scale(pf_add(lo, hi), 0.5f);
     /* Widened for the rounding of the bounds and of the cone's sampling. */
-    float r = 0.5f * pf_len(pf_sub(hi, lo)) * 1.01f + 1e-6f, d = pf_len(to);
+    *r = 0.5f * pf_len(pf_sub(hi, lo)) * 1.01f + 1e-6f;
+}
+
+/* Points a point light's emission at the scene when it lies outside its
+ * bounding sphere (see s_entry). */
+static void s_aim_at_scene(const pf_lights_t *self, const pf_scene_t *scene, s_entry *e)
+{
+    const pf_light_t *l = &scene->lights[e->light];
+    if (l->type != PF_LIGHT_POINT || !(self->radius > 0.0f))
+        return; /* not a point light, or no geometry */
+    pf_vec3 c = self->center, to = pf_sub(c, l->pos);
+    float r = self->radius, d = pf_len(to);
     if (!(d > 1.5f * r) || !isfinite(d))
         return; /* inside or close: the cone would be most of the sphere anyway */
     e->axis = pf_scale(to, 1.0f / d);
@@ -92,6 +125,7 @@ pf_lights_t *pf_lights_build(const pf_scene_t *scene)
         pf_lights_destroy(&self);
         return NULL;
     }
+    s_bounding_sphere(scene, &self->center, &self->radius);
     double acc = 0.0;
     for (size_t m = 0; m < scene->nmeshes; m++) {
         const pf_mesh_t *mesh = &scene->meshes[m];
@@ -112,18 +146,35 @@ pf_lights_t *pf_lights_build(const pf_scene_t *scene)
     }
     self->narea = self->n;
     for (size_t l = 0; l < scene->nlights; l++) {
-        double p = s_light_power(&scene->lights[l]);
+        const pf_light_t *li = &scene->lights[l];
+        double p = s_light_power(li, self->radius);
         if (!(p > 0.0))
             continue;
-        self->entries[self->n] = (s_entry){ .kind = S_POINT, .light = (uint32_t)l, .cos_max = -1.0f };
-        s_aim_at_scene(scene, &self->entries[self->n]);
+        if (li->type == PF_LIGHT_INFINITE) { /* constant skies add up to one */
+            self->sky = pf_add(self->sky, li->intensity);
+            continue;
+        }
+        s_kind kind = li->type == PF_LIGHT_DISTANT ? S_DISTANT : S_POINT;
+        self->entries[self->n] = (s_entry){ .kind = kind, .light = (uint32_t)l, .axis = li->dir, .cos_max = -1.0f };
+        s_aim_at_scene(self, scene, &self->entries[self->n]);
         self->cdf[self->n++] = acc;
         acc += p;
+    }
+    pf_light_t sky = { .type = PF_LIGHT_INFINITE, .intensity = self->sky };
+    double psky = s_light_power(&sky, self->radius);
+    if (psky > 0.0) {
+        self->entries[self->n] = (s_entry){ .kind = S_INFINITE, .cos_max = -1.0f };
+        self->cdf[self->n++] = acc;
+        acc += psky;
+    } else {
+        self->sky = pf_v3s(0.0f); /* no geometry to light: no sky either */
     }
     self->power = acc;
     for (size_t i = 0; i < self->n; i++)
         self->cdf[i] /= acc;
     self->cdf[self->n] = 1.0;
+    if (psky > 0.0)
+        self->sky_pmf = (float)(1.0 - self->cdf[self->n - 1]);
     return self;
 }
 
@@ -138,6 +189,18 @@ void pf_lights_destroy(pf_lights_t **self_p)
 }
 
 double pf_lights_power(const pf_lights_t *self) { return self->power; }
+pf_vec3 pf_lights_sky(const pf_lights_t *self, pf_vec3 d)
+{
+    (void)d; /* constant for now; an environment image would look d up */
+    return self->sky;
+}
+
+float pf_lights_sky_pdf(const pf_lights_t *self, pf_vec3 n, pf_vec3 d)
+{
+    if (pf_is_black(n))
+        return self->sky_pmf / (4.0f * PF_PI);
+    return self->sky_pmf * fmaxf(0.0f, pf_dot(n, d)) * PF_INV_PI;
+}
 size_t pf_lights_count(const pf_lights_t *self) { return self->n; }
 
 /* Picks entry i with cdf[i] <= u < cdf[i+1]; *pmf its probability. */
@@ -175,6 +238,12 @@ static void s_tri_point(const pf_scene_t *scene, const s_entry *e, float u1, flo
 int pf_lights_sample_direct(const pf_lights_t *self, const pf_scene_t *scene, pf_vec3 x, const float u[3],
                             pf_light_conn_t *out)
 {
+    return pf_lights_sample_direct_at(self, scene, x, pf_v3s(0.0f), u, out);
+}
+
+int pf_lights_sample_direct_at(const pf_lights_t *self, const pf_scene_t *scene, pf_vec3 x, pf_vec3 n,
+                               const float u[3], pf_light_conn_t *out)
+{
     if (self->n == 0)
         return 0;
     double pmf;
@@ -199,7 +268,32 @@ int pf_lights_sample_direct(const pf_lights_t *self, const pf_scene_t *scene, pf
         out->pdf = pdf_area * d2 / cos_l;
         return 1;
     }
+    if (e->kind == S_INFINITE) {
+        out->dist = INFINITY;
+        if (pf_is_black(n)) { /* uniform over the sphere: L / (pdf pmf), pdf = 1 / (4 pi) */
+            out->wi = pf_sample_sphere(u[1], u[2]);
+            out->weight = pf_scale(self->sky, 4.0f * PF_PI / (float)pmf);
+            out->pdf = (float)pmf / (4.0f * PF_PI);
+            return 1;
+        }
+        /* cosine-weighted about n: L / (pdf pmf), pdf = cos / pi */
+        pf_vec3 local = pf_sample_cosine(u[1], u[2]);
+        if (!(local.z > 0.0f))
+            return 0;
+        out->wi = pf_to_world(local, n);
+        out->weight = pf_scale(self->sky, PF_PI / (local.z * (float)pmf));
+        out->pdf = (float)pmf * local.z * PF_INV_PI;
+        return 1;
+    }
     const pf_light_t *l = &scene->lights[e->light];
+    if (e->kind == S_DISTANT) {
+        /* E arrives along dir alone: the delta's weight is E itself. */
+        out->wi = pf_neg(l->dir);
+        out->dist = INFINITY;
+        out->weight = pf_scale(l->intensity, 1.0f / (float)pmf);
+        out->pdf = 0.0f;
+        return 1;
+    }
     pf_vec3 d = pf_sub(l->pos, x);
     float d2 = pf_len2(d);
     if (!(d2 > 0.0f))
@@ -249,6 +343,24 @@ float pf_lights_pdf(const pf_lights_t *self, const pf_scene_t *scene, pf_vec3 x,
     return pmf / e->area * d2 / cos_l;
 }
 
+/* The plane a distant light's photons start on: perpendicular to its
+ * direction dir, touching the scene's bounding sphere on the light's side. */
+static pf_vec3 s_plane_origin(const pf_lights_t *self, pf_vec3 dir)
+{
+    return pf_madd(self->center, dir, -self->radius);
+}
+
+/* A uniform point on the disc of radius r on that plane whose centre is c's
+ * projection onto it. */
+static pf_vec3 s_disc_point(const pf_lights_t *self, pf_vec3 dir, pf_vec3 c, float r, float u1, float u2)
+{
+    pf_vec3 o = s_plane_origin(self, dir), t, b;
+    pf_vec3 cp = pf_madd(c, dir, -pf_dot(pf_sub(c, o), dir));
+    pf_basis(dir, &t, &b);
+    float rho = r * sqrtf(u1), phi = 2.0f * PF_PI * u2;
+    return pf_add(cp, pf_add(pf_scale(t, rho * cosf(phi)), pf_scale(b, rho * sinf(phi))));
+}
+
 int pf_lights_emit(const pf_lights_t *self, const pf_scene_t *scene, const float u[5], pf_emission_t *out)
 {
     if (self->n == 0)
@@ -267,9 +379,23 @@ int pf_lights_emit(const pf_lights_t *self, const pf_scene_t *scene, const float
         out->n = n;
         return 1;
     }
-    const pf_light_t *l = &scene->lights[e->light];
+    const pf_light_t *l = e->kind == S_INFINITE ? NULL : &scene->lights[e->light]; /* the sky: self->sky */
     out->perr = pf_v3s(0.0f);
     out->n = pf_v3s(0.0f);
+    if (e->kind == S_DISTANT) {
+        /* E / (pdf_area pmf), pdf_area = 1 / (pi R^2) over the disc. */
+        out->ray = (pf_ray_t){ s_disc_point(self, l->dir, self->center, self->radius, u[3], u[4]), l->dir };
+        out->flux = pf_scale(l->intensity, PF_PI * self->radius * self->radius / (float)pmf);
+        return 1;
+    }
+    if (e->kind == S_INFINITE) {
+        /* a direction uniform over the sphere, then as a distant light along it:
+         * L pi R^2 / (pdf_dir pmf), pdf_dir = 1 / (4 pi) */
+        pf_vec3 d = pf_sample_sphere(u[1], u[2]);
+        out->ray = (pf_ray_t){ s_disc_point(self, d, self->center, self->radius, u[3], u[4]), d };
+        out->flux = pf_scale(self->sky, 4.0f * PF_PI * PF_PI * self->radius * self->radius / (float)pmf);
+        return 1;
+    }
     if (l->type == PF_LIGHT_POINT && e->cos_max > -1.0f) {
         /* I / (pdf_dir pmf), pdf_dir = 1 / solid angle of the cone. */
         out->ray = (pf_ray_t){ l->pos, pf_to_world(pf_sample_cone(u[3], u[4], e->cos_max), e->axis) };
@@ -350,6 +476,36 @@ static void s_cone(pf_vec3 p, const pf_target_t *t, pf_vec3 *axis, float *cos_ma
     *solid = 2.0f * PF_PI * (sin2 / (1.0f + c));
 }
 
+/* A caustic photon of a distant light: a point uniform in the disc that a
+ * target chosen uniformly casts on the emission plane (every ray along dir
+ * that meets a target crosses its disc), the flux divided by the mixture pdf
+ * of all discs holding the point. */
+static int s_distant_targeted(const pf_lights_t *self, pf_vec3 dir, pf_vec3 irradiance, double pmf,
+                              const pf_target_t *targets, size_t ntargets, const float u[6], pf_emission_t *out)
+{
+    size_t ti = (size_t)(u[3] * (float)ntargets);
+    if (ti >= ntargets)
+        ti = ntargets - 1;
+    pf_vec3 p = s_disc_point(self, dir, targets[ti].center, targets[ti].radius, u[4], u[5]);
+    double pdf = 0.0;
+    for (size_t k = 0; k < ntargets; k++) {
+        pf_vec3 d = pf_sub(p, targets[k].center);
+        float r = targets[k].radius;
+        /* the squared distance to the target's centre line, by the disc's own test */
+        float dperp2 = pf_len2(pf_madd(d, dir, -pf_dot(d, dir)));
+        if (k == ti || dperp2 <= r * r)
+            pdf += 1.0 / (PF_PI * (double)r * (double)r);
+    }
+    pdf /= (double)ntargets;
+    if (!(pdf > 0.0) || !isfinite(pdf))
+        return 0;
+    out->ray = (pf_ray_t){ p, dir };
+    out->flux = pf_scale(irradiance, (float)(1.0 / (pdf * pmf)));
+    out->perr = pf_v3s(0.0f);
+    out->n = pf_v3s(0.0f);
+    return 1;
+}
+
 int pf_lights_emit_targeted(const pf_lights_t *self, const pf_scene_t *scene, const pf_target_t *targets,
                             size_t ntargets, const float u[6], pf_emission_t *out)
 {
@@ -357,6 +513,13 @@ int pf_lights_emit_targeted(const pf_lights_t *self, const pf_scene_t *scene, co
         return 0;
     double pmf;
     const s_entry *e = &self->entries[s_pick(self, u[0], &pmf)];
+    if (e->kind == S_DISTANT) {
+        const pf_light_t *ld = &scene->lights[e->light];
+        return s_distant_targeted(self, ld->dir, ld->intensity, pmf, targets, ntargets, u, out);
+    }
+    if (e->kind == S_INFINITE) /* a direction uniform over the sphere, pdf 1 / (4 pi) */
+        return s_distant_targeted(self, pf_sample_sphere(u[1], u[2]), pf_scale(self->sky, 4.0f * PF_PI), pmf,
+                                  targets, ntargets, u, out);
     pf_vec3 p, n = pf_v3s(0.0f), perr = pf_v3s(0.0f);
     const pf_light_t *l = NULL;
     if (e->kind == S_AREA) {

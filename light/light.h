@@ -1,6 +1,6 @@
 /* light.h: the scene's emitters in one power-weighted table: every emissive
- * triangle (one-sided area light along its face normal), point and spot
- * lights. Used for direct-light sampling (worker) and photon emission
+ * triangle (one-sided area light along its face normal), point, spot,
+ * distant and infinite (constant sky) lights. Used for direct-light sampling (worker) and photon emission
  * (coordinator). Built once, then read-only from any thread. */
 #ifndef PF_LIGHT_H
 #define PF_LIGHT_H
@@ -18,6 +18,16 @@ typedef struct pf_lights pf_lights_t;
 pf_lights_t *pf_lights_build(const pf_scene_t *scene);
 void pf_lights_destroy(pf_lights_t **self_p);
 
+/* The radiance a ray leaving the scene along d sees: the infinite lights'
+ * (zero without any). */
+pf_vec3 pf_lights_sky(const pf_lights_t *self, pf_vec3 d);
+
+/* The solid-angle pdf with which pf_lights_sample_direct_at, given the
+ * normal n (zero: pf_lights_sample_direct), returns the sky direction d:
+ * the sky's probability times its direction pdf; 0 without a sky. (All
+ * infinite lights make one emitter: their radiances add.) */
+float pf_lights_sky_pdf(const pf_lights_t *self, pf_vec3 n, pf_vec3 d);
+
 /* Total emitted power (W, luminance-weighted) and the number of emitters. */
 double pf_lights_power(const pf_lights_t *self);
 size_t pf_lights_count(const pf_lights_t *self);
@@ -25,9 +35,11 @@ size_t pf_lights_count(const pf_lights_t *self);
 /* A sampled light connection from a receiving point. */
 typedef struct pf_light_conn {
     pf_vec3 wi;      /* unit direction from the receiver to the light point */
-    float dist;      /* distance to the light point */
+    float dist;      /* distance to the light point; INFINITY for a distant or infinite light (a shadow
+                      * ray unoccluded to infinity) */
     pf_vec3 weight;  /* Le cos_l / (d^2 pdf), i.e. incident radiance over pdf */
-    float pdf;       /* the solid-angle pdf of wi (area lights), 0 for point and spot lights (a delta) */
+    float pdf;       /* the solid-angle pdf of wi (area and infinite lights), 0 for point, spot and distant
+                      * lights (a delta) */
 } pf_light_conn_t;
 
 /* Samples one emitter by power and a point on it, as seen from x. Returns 0
@@ -35,6 +47,14 @@ typedef struct pf_light_conn {
  * else 1. Uses u[0..2]. */
 int pf_lights_sample_direct(const pf_lights_t *self, const pf_scene_t *scene, pf_vec3 x, const float u[3],
                             pf_light_conn_t *out);
+
+/* The same at a receiver whose (shading) normal n is known: an infinite
+ * light then draws its directions cosine-weighted about n rather than
+ * uniformly over the sphere (what lies below n gets no sample; the caller
+ * weighs by cos about n, so that is no loss). n zero: as
+ * pf_lights_sample_direct. Every other light samples as there. */
+int pf_lights_sample_direct_at(const pf_lights_t *self, const pf_scene_t *scene, pf_vec3 x, pf_vec3 n,
+                               const float u[3], pf_light_conn_t *out);
 
 /* The solid-angle pdf with which pf_lights_sample_direct, called at x,
  * returns the point p on triangle prim of mesh geom (a hit's geom and
@@ -46,7 +66,10 @@ float pf_lights_pdf(const pf_lights_t *self, const pf_scene_t *scene, pf_vec3 x,
 
 /* An emitted photon: origin, direction, and flux scaled by the number of
  * photons (divide by the emitted count). perr bounds the origin's error and
- * n is the surface normal at the origin (zero for point and spot lights). */
+ * n is the surface normal at the origin (zero for point, spot, distant and
+ * infinite lights; their photons start on a disc outside the scene's
+ * bounding sphere, perpendicular to the light's direction, or for an
+ * infinite light to a direction uniform over the sphere). */
 typedef struct pf_emission {
     pf_ray_t ray;
     pf_vec3 flux;

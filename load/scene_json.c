@@ -1,7 +1,7 @@
 /* scene_json.c: the JSON scene format (docs/scene-format.md). It parses the
  * file with cJSON, checks every key and value, and appends the camera, render
  * settings, materials, objects (OBJ and PLY models through their loaders,
- * analytic spheres, quads) and point/spot lights to a pf_scene_t. It does not
+ * analytic spheres, quads) and point, spot, distant and infinite lights to a pf_scene_t. It does not
  * finalize the scene; pf_scene_load does that.
  *
  * This file holds the scene's sections and the entry point; reading the file,
@@ -805,8 +805,32 @@ static int s_light(s_ctx_t *c, const cJSON *o)
         l.dir = pf_norm(l.dir);
         l.cos_outer = (float)cos(angle * (3.14159265358979323846 / 180.0));
         l.cos_inner = (float)cos(inner * (3.14159265358979323846 / 180.0));
+    } else if (strcmp(type, "distant") == 0) {
+        static const char *const keys[] = { "type", "direction", "irradiance", NULL };
+        const char *what = "distant light";
+        l.type = PF_LIGHT_DISTANT;
+        rc = pf_json_check_object(c, o, what, keys);
+        if (!rc)
+            rc = pf_json_require(c, o, "direction", what, &vd);
+        if (!rc && !(rc = pf_json_vec3(c, vd, "direction", what, &l.dir)) && !(pf_len2(l.dir) > 0.0f))
+            rc = S_FAIL_AT(c, vd, "'direction' in distant light must not be zero");
+        if (!rc)
+            rc = pf_json_require(c, o, "irradiance", what, &vi);
+        if (!rc)
+            rc = pf_json_rgb(c, vi, "irradiance", what, 0.0f, FLT_MAX, &l.intensity);
+        if (!rc)
+            l.dir = pf_norm(l.dir);
+    } else if (strcmp(type, "infinite") == 0) {
+        static const char *const keys[] = { "type", "radiance", NULL };
+        const char *what = "infinite light";
+        l.type = PF_LIGHT_INFINITE;
+        rc = pf_json_check_object(c, o, what, keys);
+        if (!rc)
+            rc = pf_json_require(c, o, "radiance", what, &vi);
+        if (!rc)
+            rc = pf_json_rgb(c, vi, "radiance", what, 0.0f, FLT_MAX, &l.intensity);
     } else {
-        return S_FAIL_AT(c, vt, "unknown light type '%.64s' (expected point or spot)", type);
+        return S_FAIL_AT(c, vt, "unknown light type '%.64s' (expected point, spot, distant or infinite)", type);
     }
     if (rc)
         return rc;

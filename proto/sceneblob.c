@@ -16,6 +16,7 @@
  *                             ntris x 3 u32 idx, ntris x u32 mat }
  *   u32 nspheres, nspheres x { vec3 center, f32 radius, u32 mat }
  *   u32 nlights,  nlights x  { u8 type, vec3 pos, vec3 intensity, vec3 dir, f32 cos_inner, f32 cos_outer }
+ *                             (version 6: types 2 and 3, the distant and infinite lights)
  * and nothing after.
  *
  * The reader treats the blob as hostile: every count is checked against the
@@ -406,8 +407,8 @@ static void s_read_lights(s_in_t *in, pf_scene_t *scene)
         pf_light_t l;
         memset(&l, 0, sizeof l);
         uint8_t type = s_u8(in, what, "type");
-        if (!in->status && type > PF_LIGHT_SPOT)
-            s_fail(in, PF_EPARSE, "%s type %u is not a light type (0..1)", what, (unsigned)type);
+        if (!in->status && type > PF_LIGHT_LAST)
+            s_fail(in, PF_EPARSE, "%s type %u is not a light type (0..%d)", what, (unsigned)type, PF_LIGHT_LAST);
         l.type = (pf_light_type)type;
         l.pos = s_vec3(in, what, "pos");
         l.intensity = s_vec3(in, what, "intensity");

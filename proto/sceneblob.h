@@ -12,8 +12,9 @@
 /* 3: the camera gained fov_shorter, left_handed, lens_radius and
  * focal_distance (after vfov_deg); 4: materials gained eta, k and alpha
  * (the conductor's, after le); 5: material type 4, the thin dielectric,
- * which an older worker would refuse as malformed. Older blobs are refused. */
-#define PF_SCENEBLOB_VERSION 5
+ * which an older worker would refuse as malformed; 6: light types 2 and 3,
+ * the distant and the infinite light (same record). Older blobs are refused. */
+#define PF_SCENEBLOB_VERSION 6
 
 /* Serializes a finalized scene into out (reset first). 0 or PF_ENOMEM. */
 int pf_sceneblob_write(const pf_scene_t *scene, pf_buf_t *out);

@@ -55,6 +55,17 @@
  *                                      from there (L S+ C E as emitted, paths
  *                                      with a vertex beyond by the next x)
  *
+ * Distant and infinite lights (the sun and a constant sky) fit the same
+ * rows. The sun is a delta: only light sampling (direct) and photons reach
+ * it, never a ray. The sky is an emitter every escaping ray reaches, as if
+ * it were an area light's front at infinity: a camera path through S only
+ * that escapes sees it (emitted, L S* E); x's light sampling draws
+ * directions cosine-weighted about x's normal (direct, L D S* E), and a
+ * rough conductor's BSDF ray that escapes counts the sky with its MIS weight
+ * (as it counts an emitter it hits); gather rays that escape count nothing (L D E is
+ * direct, L (S|C)+ D E caustic: the caustic photons come from the sky too);
+ * photons from a disc outside the scene, in every direction.
+ *
  * Every path from a light to the eye falls in exactly one row: the classes are
  * split by the first vertex from the eye that is not S (none: emitted; x) and,
  * for a diffuse x, by what lies between x and the light (nothing: direct; only
@@ -107,7 +118,7 @@ typedef struct s_state {
     /* The BSDF-sampled ray of a rough conductor (s_rough) in flight: where it
      * left, its pdf and the number of light samples taken there, for the
      * MIS weight of an emitter it hits (s_radiance with count_le 2). */
-    pf_vec3 mis_x;
+    pf_vec3 mis_x, mis_n; /* mis_n: x's shading normal, about which the sky was sampled */
     float mis_pdf;
     int mis_nl;
     pf_pm_scratch_t scratch;
@@ -139,9 +150,14 @@ static inline float s_u(s_state *st) { return pf_rng_float(&st->rng); }
  * The ray leaves from the offset origin aimed at the light point itself (the
  * offset moves the origin off the line from the hit point), and stops short
  * of it by more than that point's rounding, so the emitter never occludes
- * itself, at any scale or distance from the origin. */
+ * itself, at any scale or distance from the origin. A distant light's
+ * dist is INFINITY: the ray must escape. */
 static int s_visible(const pf_accel_t *accel, const pf_hit_t *h, pf_vec3 wi, float dist)
 {
+    if (isinf(dist)) { /* a distant light: nothing may lie ahead */
+        pf_ray_t r = pf_spawn_ray(h, wi);
+        return !pf_accel_occluded(accel, &r, INFINITY);
+    }
     pf_vec3 target = pf_madd(h->p, wi, dist);
     pf_ray_t r = pf_spawn_ray(h, wi);
     pf_vec3 d = pf_sub(target, r.o);
@@ -162,7 +178,7 @@ static pf_vec3 s_direct(s_state *st, const pf_hit_t *h, const pf_material_t *m, 
     for (int i = 0; i < n; i++) {
         float u[3] = { s_u(st), s_u(st), s_u(st) };
         pf_light_conn_t lc;
-        if (!pf_lights_sample_direct(c->lights, c->scene, h->p, u, &lc))
+        if (!pf_lights_sample_direct_at(c->lights, c->scene, h->p, ns, u, &lc))
             continue;
         float cos_x = pf_dot(lc.wi, ns);
         if (cos_x <= 0.0f || pf_dot(lc.wi, nf) <= 0.0f)
@@ -368,7 +384,7 @@ static pf_vec3 s_rough(s_state *st, const pf_hit_t *h, const pf_material_t *m, p
     for (int i = 0; (c->terms & PF_TERM_DIRECT) && i < n; i++) {
         float u[3] = { s_u(st), s_u(st), s_u(st) };
         pf_light_conn_t lc;
-        if (!pf_lights_sample_direct(c->lights, c->scene, h->p, u, &lc))
+        if (!pf_lights_sample_direct_at(c->lights, c->scene, h->p, ns, u, &lc))
             continue;
         float cos_x = pf_dot(lc.wi, ns);
         if (cos_x <= 0.0f || pf_dot(lc.wi, nf) <= 0.0f)
@@ -385,6 +401,7 @@ static pf_vec3 s_rough(s_state *st, const pf_hit_t *h, const pf_material_t *m, p
     if (!recurse || !pf_conductor_sample(m, ns, wo, u1, u2, &wi, &wgt, &pdf) || pf_dot(wi, nf) <= 0.0f)
         return L;
     st->mis_x = h->p;
+    st->mis_n = ns;
     st->mis_pdf = pdf;
     st->mis_nl = n;
     pf_vec3 li = s_radiance(st, pf_spawn_ray(h, wi), depth + 1, pf_mul(thr, wgt), 2, 0);
@@ -406,6 +423,20 @@ static pf_vec3 s_emitted(const s_state *st, const pf_hit_t *h, const pf_material
     return pf_scale(m->le, s_power(1.0f, st->mis_pdf, (float)st->mis_nl, pl));
 }
 
+/* The sky a camera path sees when it escapes along d, as count_le counts it
+ * (see s_emitted). */
+static pf_vec3 s_sky(const s_state *st, pf_vec3 d, int count_le)
+{
+    const pf_render_ctx_t *c = st->ctx;
+    pf_vec3 sky = pf_lights_sky(c->lights, d);
+    if (!count_le || pf_is_black(sky) || !(c->terms & (count_le == 2 ? PF_TERM_DIRECT : PF_TERM_EMITTED)))
+        return pf_v3s(0.0f);
+    if (count_le == 1)
+        return sky;
+    float pl = pf_lights_sky_pdf(c->lights, st->mis_n, d);
+    return pf_scale(sky, s_power(1.0f, st->mis_pdf, (float)st->mis_nl, pl));
+}
+
 /* Radiance along a camera path. thr is the path's throughput so far (to size
  * the final gather below dim specular branches); count_le says whether an
  * emitter hit here counts (see the table above): 0 no, 1 yes, 2 with the MIS
@@ -415,8 +446,8 @@ static pf_vec3 s_radiance(s_state *st, pf_ray_t ray, int depth, pf_vec3 thr, int
 {
     const pf_render_ctx_t *c = st->ctx;
     pf_hit_t h;
-    if (!pf_accel_intersect(c->accel, &ray, INFINITY, &h))
-        return pf_v3s(0.0f);
+    if (!pf_accel_intersect(c->accel, &ray, INFINITY, &h)) /* the sky, counted as an emitter's front */
+        return s_sky(st, ray.d, count_le);
     const pf_material_t *m = &c->scene->mats[h.mat];
     pf_vec3 wo = pf_neg(ray.d);
     pf_vec3 nf = pf_face_forward(h.ng, wo);

@@ -152,6 +152,8 @@ void pf_scene_bounds(const pf_scene_t *self, pf_vec3 *lo, pf_vec3 *hi)
     pf_vec3 a, b;
     pf_scene_geometry_bounds(self, &a, &b);
     for (size_t l = 0; l < self->nlights; l++) {
+        if (self->lights[l].type == PF_LIGHT_DISTANT || self->lights[l].type == PF_LIGHT_INFINITE)
+            continue;
         a = pf_vmin(a, self->lights[l].pos);
         b = pf_vmax(b, self->lights[l].pos);
     }
@@ -337,9 +339,12 @@ int pf_scene_finalize(pf_scene_t *self, pf_error_t *err)
         const pf_light_t *li = &self->lights[l];
         pf_vec3 I = li->intensity;
         if (!s_in_range(li->pos) || !pf_is_finite3(I) || I.x < 0.0f || I.y < 0.0f || I.z < 0.0f ||
-            (li->type == PF_LIGHT_SPOT && (!pf_is_finite3(li->dir) || !(pf_len2(li->dir) > 0.0f))))
+            ((unsigned)li->type > PF_LIGHT_LAST) ||
+            ((li->type == PF_LIGHT_SPOT || li->type == PF_LIGHT_DISTANT) &&
+             (!pf_is_finite3(li->dir) || !(pf_len2(li->dir) > 0.0f))))
             return pf_error_set(err, PF_ERANGE, file, 0,
-                                "light %zu: position must be finite and within +-1e18, intensity finite and >= 0", l);
+                                "light %zu: position must be finite and within +-1e18, intensity finite and >= 0, "
+                                "direction (spot, distant) finite and not zero", l);
     }
     int emitters = (int)self->nlights;
     for (size_t mi = 0; mi < self->nmeshes && !emitters; mi++)
@@ -349,7 +354,7 @@ int pf_scene_finalize(pf_scene_t *self, pf_error_t *err)
         return pf_error_set(err, PF_EPARSE, file, 0, "the scene has no geometry");
     if (!emitters)
         return pf_error_set(err, PF_EPARSE, file, 0,
-                            "the scene has no light: give a material an emission (Ke) or add a point or spot light");
+                            "the scene has no light: give a material an emission (Ke) or add a point, spot, distant or infinite light");
     if (!self->has_camera)
         s_frame_camera(self);
     return s_check_camera(&self->camera, file, err);

@@ -65,14 +65,21 @@ typedef struct pf_sphere {
     uint32_t mat;
 } pf_sphere_t;
 
-typedef enum { PF_LIGHT_POINT = 0, PF_LIGHT_SPOT = 1 } pf_light_type;
+typedef enum { PF_LIGHT_POINT = 0, PF_LIGHT_SPOT = 1, PF_LIGHT_DISTANT = 2, PF_LIGHT_INFINITE = 3 } pf_light_type;
+#define PF_LIGHT_LAST PF_LIGHT_INFINITE
 
-/* Point and spot lights (area lights come from emissive materials). */
+/* Point, spot and distant lights (area lights come from emissive materials).
+ * A distant light (the sun) sends parallel light along dir from infinitely
+ * far away: intensity is then its irradiance on a surface perpendicular to
+ * dir (W/m^2 per channel), and pos is unused. An infinite light (a
+ * constant sky) surrounds the scene: every ray that escapes sees the
+ * radiance in intensity; pos and dir are unused. */
 typedef struct pf_light {
     pf_light_type type;
     pf_vec3 pos;
-    pf_vec3 intensity;  /* radiant intensity, W/sr per channel, on the axis for spots */
-    pf_vec3 dir;        /* spot axis, unit */
+    pf_vec3 intensity;  /* radiant intensity, W/sr per channel, on the axis for spots; irradiance for distant;
+                         * radiance for infinite */
+    pf_vec3 dir;        /* spot axis, or the direction a distant light's light travels; unit */
     float cos_inner;    /* spot: full intensity inside this cone */
     float cos_outer;    /* spot: zero outside; smoothstep between */
 } pf_light_t;
@@ -168,7 +175,8 @@ pf_material_t pf_material_default(const char *name);
  * geometry if none was given. 0 or a status with err filled. */
 int pf_scene_finalize(pf_scene_t *self, pf_error_t *err);
 
-/* World-space bounds of all geometry and of the point and spot lights. */
+/* World-space bounds of all geometry and of the point and spot lights
+ * (distant and infinite lights have no position). */
 void pf_scene_bounds(const pf_scene_t *self, pf_vec3 *lo, pf_vec3 *hi);
 /* The bounds of the geometry alone (meshes and spheres, not the lights);
  * lo > hi when there is none. */

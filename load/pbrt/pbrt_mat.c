@@ -33,8 +33,13 @@
  * the radiance that makes the shape emit "power" watts) to the shapes after
  * it, one-sided; LightSource "point" and "spot" become point and spot
  * lights (pbrt's spot falloff is the same smoothstep as light.c's, between
- * cos(coneangle) and cos(coneangle - conedelta)); the other light types are
- * warned as not rendered yet. */
+ * cos(coneangle) and cos(coneangle - conedelta)); "distant" becomes a
+ * distant light shining from "from" towards "to" (the CTM's linear part
+ * turns that direction), irradiance L * scale, times "illuminance" when
+ * given (pbrt-v4 normalizes L to one nit, which an RGB L already is here);
+ * "infinite" without "filename" becomes a constant sky of radiance L *
+ * scale (times illuminance / pi when given); with an image it and the other
+ * light types are warned as not rendered yet. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -521,11 +526,107 @@ static int s_point_spot(pf_pbrt_t *c, int spot, pf_pbrt_params_t *ps, pf_pbrt_lo
     return PF_OK;
 }
 
+/* A direction of the light's space in world space (the CTM's linear part). */
+static pf_vec3 s_world_vector(const pf_pbrt_t *c, const double v[3])
+{
+    const double(*m)[4] = (const double(*)[4])c->gs.ctm;
+    double r[3];
+    for (int i = 0; i < 3; i++)
+        r[i] = m[i][0] * v[0] + m[i][1] * v[1] + m[i][2] * v[2];
+    return pf_v3((float)r[0], (float)r[1], (float)r[2]);
+}
+
+/* LightSource "distant". */
+static int s_distant(pf_pbrt_t *c, pf_pbrt_params_t *ps, pf_pbrt_loc_t loc)
+{
+    const char *what = "LightSource \"distant\"";
+    pf_vec3 L;
+    double scale, illum, from[3], to[3];
+    int rc = pf_pbrt_get_color(c, ps, "L", PF_PBRT_ILLUMINANT, pf_v3s(1.0f), what, &L, NULL);
+    if (rc == PF_OK)
+        rc = pf_pbrt_get_float(c, ps, "scale", 1.0, &scale);
+    if (rc == PF_OK)
+        rc = pf_pbrt_get_float(c, ps, "illuminance", -1.0, &illum);
+    if (rc == PF_OK)
+        rc = pf_pbrt_get_point3(c, ps, "from", pf_v3(0, 0, 0), from);
+    if (rc == PF_OK)
+        rc = pf_pbrt_get_point3(c, ps, "to", pf_v3(0, 0, 1), to);
+    if (rc == PF_OK && scale < 0.0)
+        rc = pf_pbrt_error(c, PF_ERANGE, loc, "%s: scale must be >= 0", what);
+    if (rc == PF_OK)
+        rc = pf_pbrt_check_unused(c, ps, what);
+    if (rc)
+        return rc;
+    if (illum > 0.0) /* pbrt-v4: a negative or zero illuminance is unset */
+        scale *= illum;
+    double v[3] = { to[0] - from[0], to[1] - from[1], to[2] - from[2] };
+    pf_vec3 d = s_world_vector(c, v);
+    if (!(pf_len2(d) > 0.0f) || !pf_is_finite3(d))
+        return pf_pbrt_error(c, PF_EPARSE, loc, "%s: \"from\" and \"to\" must differ", what);
+    pf_light_t l = { .type = PF_LIGHT_DISTANT, .dir = pf_norm(d), .intensity = pf_scale(L, (float)scale) };
+    if (!pf_is_finite3(l.intensity) || !pf_is_finite3(l.dir))
+        return pf_pbrt_error(c, PF_ERANGE, loc, "%s: direction or irradiance is not finite", what);
+    if (c->cur_object >= 0)
+        return pf_pbrt_warn(c, loc, "light inside an object definition (ignored)",
+                            "%s inside ObjectBegin is not instanced (pbrt ignores it too)", what);
+    if (pf_scene_add_light(c->scene, &l))
+        return pf_pbrt_error(c, PF_ENOMEM, loc, "out of memory");
+    return PF_OK;
+}
+
+/* LightSource "infinite" without an image: a constant sky. 1 when it has an
+ * image (not rendered yet: the caller warns), else 0 or a status. */
+static int s_infinite(pf_pbrt_t *c, pf_pbrt_params_t *ps, pf_pbrt_loc_t loc, int *image)
+{
+    const char *what = "LightSource \"infinite\"";
+    const char *file;
+    pf_vec3 L;
+    double scale, illum;
+    int rc = pf_pbrt_get_string(c, ps, "filename", "", &file);
+    *image = rc == PF_OK && file[0] != '\0';
+    if (rc || *image)
+        return rc;
+    rc = pf_pbrt_get_color(c, ps, "L", PF_PBRT_ILLUMINANT, pf_v3s(1.0f), what, &L, NULL);
+    if (rc == PF_OK)
+        rc = pf_pbrt_get_float(c, ps, "scale", 1.0, &scale);
+    if (rc == PF_OK)
+        rc = pf_pbrt_get_float(c, ps, "illuminance", -1.0, &illum);
+    if (rc == PF_OK && scale < 0.0)
+        rc = pf_pbrt_error(c, PF_ERANGE, loc, "%s: scale must be >= 0", what);
+    if (rc == PF_OK)
+        rc = pf_pbrt_check_unused(c, ps, what);
+    if (rc)
+        return rc;
+    if (illum > 0.0) /* pbrt-v4: the illuminance of an upward patch, pi L for a constant sky */
+        scale *= illum / M_PI;
+    pf_light_t l = { .type = PF_LIGHT_INFINITE, .intensity = pf_scale(L, (float)scale) };
+    if (!pf_is_finite3(l.intensity))
+        return pf_pbrt_error(c, PF_ERANGE, loc, "%s: radiance is not finite", what);
+    if (c->cur_object >= 0)
+        return pf_pbrt_warn(c, loc, "light inside an object definition (ignored)",
+                            "%s inside ObjectBegin is not instanced (pbrt ignores it too)", what);
+    if (pf_scene_add_light(c->scene, &l))
+        return pf_pbrt_error(c, PF_ENOMEM, loc, "out of memory");
+    return PF_OK;
+}
+
 int pf_pbrt_light(pf_pbrt_t *c, const char *type, pf_pbrt_params_t *ps, pf_pbrt_loc_t loc)
 {
+    if (!strcmp(type, "infinite")) {
+        int image = 0, rc = s_infinite(c, ps, loc, &image);
+        if (rc || !image)
+            return rc;
+        for (size_t k = 0; k < ps->n; k++)
+            ps->p[k].used = 1;
+        return pf_pbrt_warn(c, loc, "light type infinite with an image (not rendered yet)",
+                            "LightSource \"infinite\" with \"filename\" (an environment map) is not rendered: "
+                            "it adds no light");
+    }
     if (!strcmp(type, "point") || !strcmp(type, "spot"))
         return s_point_spot(c, type[0] == 's', ps, loc);
-    static const char *later[] = { "distant", "infinite", "goniometric", "projection" };
+    if (!strcmp(type, "distant"))
+        return s_distant(c, ps, loc);
+    static const char *later[] = { "goniometric", "projection" };
     for (size_t i = 0; i < sizeof later / sizeof *later; i++) {
         if (strcmp(type, later[i]) != 0)
             continue;

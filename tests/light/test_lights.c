@@ -14,6 +14,15 @@
  *     the emitted intensity per angle, and direct weights I falloff / d^2.
  * (d) Several lights: each is picked in proportion to its power, and every
  *     estimate stays unbiased.
+ * (e) A distant light: power pi R^2 lum(E) (R: the scene's bounding sphere,
+ *     which the disc must cover), direct weight E along -dir to infinity;
+ *     photons travel along dir from outside the sphere and carry E cos A onto
+ *     a tilted quad; caustic photons aimed at a sphere carry E pi r^2 onto it
+ *     (its cross-section).
+ * (f) An infinite light (constant sky L): power 4 pi^2 R^2 lum(L); direct
+ *     samples give the irradiance pi L on any surface (each one, when
+ *     cosine-weighted about its normal); photons bring pi L A
+ *     down onto a horizontal quad's top.
  * Statistical bounds are 5 standard errors estimated from the samples (plus
  * the 1 % the task asks of the irradiance), or dof + 6 sqrt(2 dof) for
  * chi-square; randomness is pf_rng_make(seed, PF_STREAM_TEST, i, 0). */
@@ -753,6 +762,205 @@ static void s_test_light_choice(void)
     pf_scene_destroy(&sc);
 }
 
+/* ---- (e) a distant light ---- */
+
+/* The flux a photon brings onto the parallelogram corner + a u + b v (a, b
+ * in [0, 1]), 0 when its ray misses it. */
+static double s_quad_flux(const pf_emission_t *e, pf_vec3 corner, pf_vec3 u, pf_vec3 v, int channel)
+{
+    pf_vec3 n = pf_cross(u, v);
+    float dn = pf_dot(e->ray.d, n);
+    if (dn == 0.0f)
+        return 0.0;
+    float t = pf_dot(pf_sub(corner, e->ray.o), n) / dn;
+    if (!(t > 0.0f))
+        return 0.0;
+    pf_vec3 q = pf_sub(pf_madd(e->ray.o, e->ray.d, t), corner);
+    double a = pf_dot(q, u) / pf_len2(u), b = pf_dot(q, v) / pf_len2(v);
+    if (a < 0.0 || a > 1.0 || b < 0.0 || b > 1.0)
+        return 0.0;
+    return channel == 0 ? e->flux.x : channel == 1 ? e->flux.y : e->flux.z;
+}
+
+static void s_test_distant_light(void)
+{
+    pf_scene_t *sc = pf_scene_create();
+    int fm = s_add_material(sc, pf_v3s(0.5f), pf_v3s(0.0f));
+    /* A 2 x 1 quad tilted 30 degrees about x, and a small one far off that
+     * stretches the bounds. */
+    pf_vec3 corner = pf_v3(-1, 0, 0), qu = pf_v3(2, 0, 0), qv = pf_v3(0, 0.5f, -0.8660254f);
+    s_add_quad(sc, corner, qu, qv, fm, NULL);
+    s_add_quad(sc, pf_v3(3, -1, -2), pf_v3(0.1f, 0, 0), pf_v3(0, 0, -0.1f), fm, NULL);
+    pf_light_t l;
+    memset(&l, 0, sizeof l);
+    l.type = PF_LIGHT_DISTANT;
+    l.dir = pf_norm(pf_v3(0.2f, -1.0f, -0.4f));
+    l.intensity = pf_v3(2.0f, 3.0f, 4.0f);
+    pf_scene_add_light(sc, &l);
+    s_finalize(sc);
+    pf_lights_t *lt = s_build(sc);
+    pf_vec3 lo, hi;
+    pf_scene_geometry_bounds(sc, &lo, &hi);
+    pf_vec3 c = pf_scale(pf_add(lo, hi), 0.5f);
+    double half_diag = 0.5 * pf_len(pf_sub(hi, lo));
+    /* the disc's radius from the power, which must cover the bounds */
+    double r = sqrt(pf_lights_power(lt) / (PI_D * pf_luminance(l.intensity)));
+    CHECK(pf_lights_count(lt) == 1 && r >= half_diag && r <= 1.02 * half_diag,
+          "distant light: %zu emitters, disc radius %.5g for a bounding sphere of %.5g (power %.6g)",
+          pf_lights_count(lt), r, half_diag, pf_lights_power(lt));
+
+    long bad = 0;
+    for (int i = 0; i < 1000; i++) {
+        float u[3];
+        s_uniforms(601, (uint64_t)i, u, 3);
+        pf_light_conn_t lc;
+        pf_vec3 x = pf_v3(u[0] * 2 - 1, u[1], u[2] - 1);
+        if (!pf_lights_sample_direct(lt, sc, x, u, &lc) || !isinf(lc.dist) || lc.pdf != 0.0f ||
+            pf_dot(lc.wi, l.dir) > -0.99999f || s_rel(lc.weight.x, 2.0) > 1e-6 || s_rel(lc.weight.z, 4.0) > 1e-6)
+            bad++;
+    }
+    CHECK(bad == 0, "%ld distant-light connections not (wi = -dir, dist = inf, weight = E, pdf 0)", bad);
+
+    /* Photons: along dir, from outside the sphere, through the disc; the flux
+     * they bring onto the tilted quad is E cos A (channel y: 3). */
+    pf_vec3 n = pf_norm(pf_cross(qu, qv));
+    double want = 3.0 * fabs(pf_dot(n, l.dir)) * pf_len(pf_cross(qu, qv));
+    const long np = 200000;
+    long bad_e = 0;
+    s_stat flux = { 0 };
+    for (long i = 0; i < np; i++) {
+        float u[5];
+        s_uniforms(602, (uint64_t)i, u, 5);
+        pf_emission_t e;
+        if (!pf_lights_emit(lt, sc, u, &e)) {
+            bad_e++;
+            continue;
+        }
+        pf_vec3 to = pf_sub(c, e.ray.o);
+        float along = pf_dot(to, e.ray.d);
+        double off = pf_len(pf_sub(to, pf_scale(e.ray.d, along)));
+        if (pf_dot(e.ray.d, l.dir) < 0.99999f || along < half_diag || off > r * 1.0001 ||
+            s_rel(e.flux.y, 3.0 * PI_D * r * r) > 1e-4 || !pf_is_black(e.n))
+            bad_e++;
+        s_stat_add(&flux, s_quad_flux(&e, corner, qu, qv, 1));
+    }
+    CHECK(bad_e == 0, "%ld distant-light photons not along dir, from inside the sphere, off the disc or with flux "
+                      "!= E pi R^2", bad_e);
+    CHECK(fabs(flux.mean - want) <= 5.0 * s_stat_se(&flux),
+          "distant light: flux onto the tilted quad %.5f per photon, expected E cos A = %.5f (5 se = %.3g)", flux.mean,
+          want, 5.0 * s_stat_se(&flux));
+
+    /* Caustic photons aimed at a mirror sphere of radius 0.3 (the only
+     * specular target), with a sky of radiance L added: the flux onto it is
+     * E pi r^2 from the sun and pi L 4 pi r^2 from the sky (channel z: E 4,
+     * L 0.1). */
+    pf_material_t mir = pf_material_default("mirror");
+    mir.type = PF_MAT_MIRROR;
+    mir.ks = pf_v3s(1.0f);
+    pf_sphere_t sp = { pf_v3(0.5f, 0.6f, -0.2f), 0.3f, (uint32_t)pf_scene_add_material(sc, &mir) };
+    pf_scene_add_sphere(sc, &sp);
+    pf_light_t sky = { .type = PF_LIGHT_INFINITE, .intensity = pf_v3s(0.1f) };
+    pf_scene_add_light(sc, &sky);
+    pf_lights_t *lt2 = s_build(sc);
+    pf_target_t *targets = NULL;
+    int nt = pf_specular_targets(sc, &targets);
+    CHECK(nt == 1, "one specular target, got %d", nt);
+    s_stat sflux = { 0 };
+    long hits = 0;
+    for (long i = 0; nt == 1 && i < np; i++) {
+        float u[6];
+        s_uniforms(603, (uint64_t)i, u, 6);
+        pf_emission_t e;
+        double got = 0.0;
+        if (pf_lights_emit_targeted(lt2, sc, targets, 1, u, &e)) {
+            pf_vec3 oc = pf_sub(sp.center, e.ray.o);
+            float along = pf_dot(oc, e.ray.d);
+            if (pf_len2(oc) - along * along <= sp.radius * sp.radius && along > 0.0f) {
+                got = e.flux.z;
+                hits++;
+            }
+        }
+        s_stat_add(&sflux, got);
+    }
+    double swant = 4.0 * PI_D * sp.radius * sp.radius + PI_D * 0.1 * 4.0 * PI_D * sp.radius * sp.radius;
+    CHECK(hits > np / 2, "only %ld of %ld aimed photons hit the sphere", hits, np);
+    CHECK(fabs(sflux.mean - swant) <= 5.0 * s_stat_se(&sflux),
+          "distant light and sky: aimed flux onto the sphere %.5f per photon, expected (E + 4 pi L) pi r^2 = %.5f "
+          "(5 se = %.3g)",
+          sflux.mean, swant, 5.0 * s_stat_se(&sflux));
+    free(targets);
+    pf_lights_destroy(&lt2);
+    pf_lights_destroy(&lt);
+    pf_scene_destroy(&sc);
+}
+
+/* ---- (f) an infinite light ---- */
+
+static void s_test_infinite_light(void)
+{
+    pf_scene_t *sc = pf_scene_create();
+    int fm = s_add_material(sc, pf_v3s(0.5f), pf_v3s(0.0f));
+    pf_vec3 corner = pf_v3(-1, 0, 0.5f), qu = pf_v3(2, 0, 0), qv = pf_v3(0, 0, -1);
+    s_add_quad(sc, corner, qu, qv, fm, NULL);
+    s_add_quad(sc, pf_v3(0, 1, 0), pf_v3(0.1f, 0, 0), pf_v3(0, 0, -0.1f), fm, NULL);
+    pf_light_t l;
+    memset(&l, 0, sizeof l);
+    l.type = PF_LIGHT_INFINITE;
+    l.intensity = pf_v3(0.5f, 1.0f, 2.0f);
+    pf_scene_add_light(sc, &l);
+    s_finalize(sc);
+    pf_lights_t *lt = s_build(sc);
+    pf_vec3 lo, hi;
+    pf_scene_geometry_bounds(sc, &lo, &hi);
+    double half_diag = 0.5 * pf_len(pf_sub(hi, lo));
+    double r = sqrt(pf_lights_power(lt) / (4.0 * PI_D * PI_D * pf_luminance(l.intensity)));
+    CHECK(r >= half_diag && r <= 1.02 * half_diag, "infinite light: disc radius %.5g for a bounding sphere of %.5g", r,
+          half_diag);
+    /* irradiance on a tilted normal: pi L */
+    pf_vec3 n = pf_norm(pf_v3(0.3f, 1.0f, -0.5f));
+    s_stat irr = { 0 };
+    long bad = 0;
+    const long ns = 400000;
+    for (long i = 0; i < ns; i++) {
+        float u[3];
+        s_uniforms(701, (uint64_t)i, u, 3);
+        pf_light_conn_t lc;
+        if (!pf_lights_sample_direct(lt, sc, pf_v3(0, 0, 0), u, &lc) || !isinf(lc.dist) ||
+            s_rel(lc.pdf, 1.0 / (4.0 * PI_D)) > 1e-5 || lc.pdf != pf_lights_sky_pdf(lt, pf_v3s(0.0f), lc.wi) ||
+            fabsf(pf_len(lc.wi) - 1.0f) > 1e-5f) {
+            bad++;
+            continue;
+        }
+        s_stat_add(&irr, lc.weight.z * fmax(0.0, pf_dot(lc.wi, n)));
+        /* cosine-weighted about a known normal: every sample gives pi L */
+        bad += !pf_lights_sample_direct_at(lt, sc, pf_v3(0, 0, 0), n, u, &lc) ||
+               s_rel(lc.weight.z * pf_dot(lc.wi, n), PI_D * 2.0) > 1e-4 ||
+               fabs(lc.pdf - pf_lights_sky_pdf(lt, n, lc.wi)) > 1e-5 * (1.0 / PI_D); /* rounding of cos */
+    }
+    CHECK(bad == 0, "%ld infinite-light connections not (unit wi, dist = inf, pdf 1 / (4 pi) = pf_lights_sky_pdf) "
+                    "or, about n, not pi L with pdf cos / pi", bad);
+    CHECK(fabs(irr.mean - PI_D * 2.0) <= 5.0 * s_stat_se(&irr),
+          "infinite light: irradiance %.5f, expected pi L = %.5f (5 se = %.3g)", irr.mean, PI_D * 2.0,
+          5.0 * s_stat_se(&irr));
+    /* photons down onto the quad's top: pi L A (channel y: L = 1) */
+    s_stat flux = { 0 };
+    for (long i = 0; i < ns; i++) {
+        float u[5];
+        s_uniforms(702, (uint64_t)i, u, 5);
+        pf_emission_t e;
+        double got = 0.0;
+        if (pf_lights_emit(lt, sc, u, &e) && e.ray.d.y < 0.0f)
+            got = s_quad_flux(&e, corner, qu, qv, 1);
+        s_stat_add(&flux, got);
+    }
+    double want = PI_D * 1.0 * 2.0;
+    CHECK(fabs(flux.mean - want) <= 5.0 * s_stat_se(&flux),
+          "infinite light: flux down onto the quad %.5f per photon, expected pi L A = %.5f (5 se = %.3g)", flux.mean,
+          want, 5.0 * s_stat_se(&flux));
+    pf_lights_destroy(&lt);
+    pf_scene_destroy(&sc);
+}
+
 /* An empty table is valid and samples nothing. */
 static void s_test_empty(void)
 {
@@ -780,6 +988,8 @@ int main(void)
     s_test_point_light_far();
     s_test_spot_light();
     s_test_light_choice();
+    s_test_distant_light();
+    s_test_infinite_light();
     s_test_empty();
     printf("%d passed, %d failed\n", s_passed, s_failed);
     return s_failed ? 1 : 0;

@@ -350,13 +350,21 @@ static void test_lights(void)
                                    "LightSource \"point\" \"rgb I\" [1 2 3] \"float scale\" 2 \"point3 from\" [1 0 0]\n"
                                    "LightSource \"spot\" \"blackbody I\" 6500 \"point3 from\" [0 0 0] \"point3 to\" [0 0 -3]\n"
                                    "  \"float coneangle\" 40 \"float conedelta\" 10 \"float power\" 100\n"
-                                   "LightSource \"distant\" \"rgb L\" [1 1 1]\nLightSource \"infinite\"\n"
+                                   "LightSource \"distant\" \"rgb L\" [1 2 3] \"float illuminance\" 2 \"point3 from\" [0 0 0]\n"
+                                   "  \"point3 to\" [1 0 0]\nRotate 90 0 0 1\nLightSource \"distant\" \"float scale\" 3\n"
+                                   "LightSource \"infinite\" \"rgb L\" [1 2 3] \"float illuminance\" 6.2831853\n"
+                                   "LightSource \"infinite\" \"string filename\" \"sky.pfm\"\n"
                                    "AreaLightSource \"diffuse\" \"blackbody L\" 3000 \"float power\" 10\n"
                                    "Shape \"trianglemesh\" \"point3 P\" [0 0 0  2 0 0  0 2 0]\n",
                             0, &rep, &err);
-    CHECK(s && s->nlights == 2 && s->nmeshes == 1, "%s", err.msg);
-    if (s && s->nlights == 2 && s->nmeshes == 1) {
-        const pf_light_t *p = &s->lights[0], *sp = &s->lights[1];
+    CHECK(s && s->nlights == 5 && s->nmeshes == 1, "%s", err.msg);
+    if (s && s->nlights == 5 && s->nmeshes == 1) {
+        /* a constant sky: L times illuminance / pi (an upward patch gets pi L) */
+        CHECK(s->lights[4].type == PF_LIGHT_INFINITE && s_vnear(s->lights[4].intensity, 2, 4, 6));
+        const pf_light_t *p = &s->lights[0], *sp = &s->lights[1], *d1 = &s->lights[2], *d2 = &s->lights[3];
+        /* distant: from -> to, turned by the CTM's linear part (not moved), L times illuminance (and scale) */
+        CHECK(d1->type == PF_LIGHT_DISTANT && s_vnear(d1->dir, 1, 0, 0) && s_vnear(d1->intensity, 2, 4, 6));
+        CHECK(d2->type == PF_LIGHT_DISTANT && s_vnear(d2->dir, 0, 0, 1) && s_vnear(d2->intensity, 3, 3, 3));
         CHECK(p->type == PF_LIGHT_POINT && s_vnear(p->pos, 1, 1, 0) && s_vnear(p->intensity, 2, 4, 6));
         CHECK(sp->type == PF_LIGHT_SPOT && s_vnear(sp->pos, 0, 1, 0) && s_vnear(sp->dir, 0, 0, -1));
         CHECK(s_near(sp->cos_outer, cosf(40 * PF_PI / 180)) && s_near(sp->cos_inner, cosf(30 * PF_PI / 180)));
@@ -370,7 +378,7 @@ static void test_lights(void)
                   fabsf(sp->intensity.z / sp->intensity.y - 1.0f) < 0.1f,
               "6500 K is near white: %g %g %g", sp->intensity.x, sp->intensity.y, sp->intensity.z);
     }
-    CHECK(s_warned(&rep, "light type distant") == 1 && s_warned(&rep, "light type infinite") == 1);
+    CHECK(s_warned(&rep, "light type distant") == 0 && s_warned(&rep, "light type infinite with an image") == 1);
     pf_scene_destroy(&s);
 }
 
@@ -662,23 +670,30 @@ static void test_bitterli(void)
         CHECK(rough == 4, "veach-mis: 4 rough conductor plates, got %zu", rough);
     }
     pf_scene_destroy(&s);
-    /* The dining room has the sun and sky alone (not rendered yet): it parses,
-     * and finalize refuses it for want of a light. */
+    /* The dining room has the sun and sky alone: the sun is read (a distant
+     * light), the sky is not rendered yet. */
     s = pf_scene_create();
     CHECK(pf_pbrt_load(s, dining, &(pf_load_opts_t){ .report = &rep }, &err) == PF_OK, "%s", err.msg);
     size_t ntris = 0;
     for (size_t i = 0; i < s->nmeshes; i++)
         ntris += s->meshes[i].ntris;
-    CHECK(s->nmeshes == 53 && ntris == 269538 && s->nlights == 0, "%zu meshes, %zu triangles", s->nmeshes, ntris);
-    const char *kinds[] = { "Sampler (ignored)", "PixelFilter (ignored)", "light type distant", "light type infinite",
-                            "texture", "coateddiffuse (approximated)" };
+    CHECK(s->nmeshes == 53 && ntris == 269538 && s->nlights == 1, "%zu meshes, %zu triangles", s->nmeshes, ntris);
+    if (s->nlights == 1) {
+        const pf_light_t *l = &s->lights[0];
+        pf_vec3 to_sun = pf_norm(pf_v3(0.88698f, 0.288862f, 0.360313f));
+        CHECK(l->type == PF_LIGHT_DISTANT && pf_dot(l->dir, to_sun) < -0.9999f && s_vnear(l->intensity, 10, 10, 10),
+              "dir %g %g %g", l->dir.x, l->dir.y, l->dir.z);
+    }
+    const char *kinds[] = { "Sampler (ignored)", "PixelFilter (ignored)", "light type infinite", "texture",
+                            "coateddiffuse (approximated)" };
     for (size_t i = 0; i < sizeof kinds / sizeof *kinds; i++)
         CHECK(s_warned(&rep, kinds[i]) >= 1, "%s", kinds[i]);
-    CHECK(rep.nwarnings == 6 && s_warned(&rep, "texture") == 3 && s_warned(&rep, "rough conductor") == 0, "%zu kinds",
+    CHECK(rep.nwarnings == 5 && s_warned(&rep, "texture") == 3 && s_warned(&rep, "rough conductor") == 0, "%zu kinds",
           rep.nwarnings);
     pf_scene_destroy(&s);
     s = pf_scene_load(dining, &err);
-    CHECK(!s && strstr(err.msg, "the scene has no light"), "%s", err.msg);
+    CHECK(s && s->nlights == 1, "the sun lights it: %s", s ? "" : err.msg);
+    pf_scene_destroy(&s);
 }
 
 /* ---- allocation failures ----

@@ -151,8 +151,17 @@ static void test_prims(void)
               V3A(q->pos[1]), V3A(q->pos[2]));
     }
 
-    CHECK(sc->nlights == 2, "two lights, got %zu", sc->nlights);
-    if (sc->nlights == 2) {
+    CHECK(sc->nlights == 4, "four lights, got %zu", sc->nlights);
+    if (sc->nlights == 4)
+        CHECK(sc->lights[3].type == PF_LIGHT_INFINITE && near3(sc->lights[3].intensity, pf_v3(0.25f, 0.5f, 1), 0),
+              "infinite light radiance " V3F, V3A(sc->lights[3].intensity));
+    if (sc->nlights >= 3) {
+        const pf_light_t *d = &sc->lights[2];
+        CHECK(d->type == PF_LIGHT_DISTANT && near3(d->dir, pf_v3(0, -0.6f, 0.8f), 1e-6f) &&
+                  near3(d->intensity, pf_v3(1, 2, 3), 0),
+              "distant light dir " V3F " irradiance " V3F, V3A(d->dir), V3A(d->intensity));
+    }
+    if (sc->nlights >= 2) {
         const pf_light_t *l = &sc->lights[0];
         CHECK(l->type == PF_LIGHT_POINT && near3(l->pos, pf_v3(0, 1.9f, 0), 0) && near3(l->intensity, pf_v3(5, 6, 7), 0),
               "point light");
@@ -447,6 +456,14 @@ static void test_bad_inline(void)
           "{ \"lights\": [ { \"type\": \"spot\", \"position\": [0, 0, 0], \"direction\": [0, -1, 0], \"intensity\": 1,\n \"angle\": 120 } ] }\n" },
         { 2, "'falloff_start' in spot light must be in [0, angle]",
           "{ \"lights\": [ { \"type\": \"spot\", \"position\": [0, 0, 0], \"direction\": [0, -1, 0], \"intensity\": 1, \"angle\": 30,\n \"falloff_start\": 40 } ] }\n" },
+        { 2, "'direction' in distant light must not be zero",
+          "{ \"lights\": [ { \"type\": \"distant\",\n \"direction\": [0, 0, 0], \"irradiance\": 1 } ] }\n" },
+        { 2, "distant light is missing the required key 'irradiance'",
+          "{ \"lights\": [\n { \"type\": \"distant\", \"direction\": [0, -1, 0] } ] }\n" },
+        { 2, "unknown key 'direction' in infinite light",
+          "{ \"lights\": [ { \"type\": \"infinite\", \"radiance\": 1,\n \"direction\": [0, -1, 0] } ] }\n" },
+        { 2, "unknown key 'position' in distant light",
+          "{ \"lights\": [ { \"type\": \"distant\", \"direction\": [0, -1, 0], \"irradiance\": 1,\n \"position\": [0, 0, 0] } ] }\n" },
         { 2, "'direction' in spot light must not be zero",
           "{ \"lights\": [ { \"type\": \"spot\", \"position\": [0, 0, 0],\n \"direction\": [0, 0, 0], \"intensity\": 1, \"angle\": 30 } ] }\n" },
         { 3, "'intensity' in point light must be >= 0",

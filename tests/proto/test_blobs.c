@@ -1,7 +1,7 @@
 /* test_blobs.c: the scene blob and the photon-map blob (ctest `blobs`).
  *
  * Scene blob: a small scene built in code (materials of every kind, a mesh
- * with normals and one without, a sphere, a point and a spot light, a
+ * with normals and one without, a sphere, a point, a spot, a distant and an infinite light, a
  * left-handed thin-lens camera whose fov spans the shorter axis)
  * and the shipped cornell-spheres scene round-trip into scenes equal in every
  * array, and re-serialize to the same bytes; every truncation (all lengths
@@ -150,6 +150,10 @@ static pf_scene_t *s_tiny_scene(void)
     pf_scene_add_light(s, &l);
     l = (pf_light_t){ .type = PF_LIGHT_SPOT, .pos = pf_v3(1, 1.5f, 1), .intensity = pf_v3s(10),
                       .dir = pf_norm(pf_v3(-1, -1, -1)), .cos_inner = 0.95f, .cos_outer = 0.9f };
+    pf_scene_add_light(s, &l);
+    l = (pf_light_t){ .type = PF_LIGHT_DISTANT, .intensity = pf_v3(3, 2, 1), .dir = pf_norm(pf_v3(0.3f, -1, 0.2f)) };
+    pf_scene_add_light(s, &l);
+    l = (pf_light_t){ .type = PF_LIGHT_INFINITE, .intensity = pf_v3(0.5f, 0.6f, 0.7f) };
     pf_scene_add_light(s, &l);
     s->camera = (pf_camera_desc_t){ .pos = pf_v3(0, 1, 4), .look_at = pf_v3(0, 0.5f, 0), .up = pf_v3(0, 1, 0),
                                     .vfov_deg = 45.0f, .fov_shorter = 1, .left_handed = 1, .lens_radius = 0.05f,
@@ -370,9 +374,10 @@ static void test_scene_blob(void)
     const s_spatch_t patches[] = {
         { 0, 1, 'X', 0, "bad magic", "magic" },
         { 4, 2, 9, 0, "format version 9", "version" },
-        { 4, 2, 2, 0, "format version 2, this build reads 5", "version 2 (before the lens)" },
-        { 4, 2, 3, 0, "format version 3, this build reads 5", "version 3 (before the conductor)" },
-        { 4, 2, 4, 0, "format version 4, this build reads 5", "version 4 (before the thin dielectric)" },
+        { 4, 2, 2, 0, "format version 2, this build reads 6", "version 2 (before the lens)" },
+        { 4, 2, 3, 0, "format version 3, this build reads 6", "version 3 (before the conductor)" },
+        { 4, 2, 4, 0, "format version 4, this build reads 6", "version 4 (before the thin dielectric)" },
+        { 4, 2, 5, 0, "format version 5, this build reads 6", "version 5 (before the distant light)" },
         { o.reserved, 2, 1, 0, "reserved", "reserved field" },
         { o.has_camera, 1, 2, 0, "has_camera", "has_camera 2" },
         { o.has_camera + 1, -4, 0, NAN, "camera pos is not a finite number", "camera NaN" },
@@ -409,7 +414,7 @@ static void test_scene_blob(void)
         { o.sphere0_radius, -4, 0, 0.0f, "sphere 0: centre must be finite and radius > 0", "radius 0 (finalize)" },
         { o.sphere0_mat, 4, 9, 0, "sphere 0 material index 9", "sphere material" },
         { o.nlights, 4, 0x10000000u, 0, "lights need at least", "light count" },
-        { o.light0_type, 1, 5, 0, "light 0 type 5", "light type" },
+        { o.light0_type, 1, 5, 0, "light 0 type 5 is not a light type (0..3)", "light type" },
     };
     for (size_t i = 0; i < sizeof patches / sizeof patches[0]; i++)
         s_scene_patch(&b, &patches[i]);

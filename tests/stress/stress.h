@@ -2,7 +2,8 @@
  * runs the groups). The scene builders and the checked renders live in
  * stress.c; each group of cases lives in a file of its own:
  * stress_analytic.c (furnace, plane, invariance), stress_geometry.c
- * (geometry, degenerate input) and stress_kdtree.c (kd-tree extremes).
+ * (geometry, degenerate input), stress_kdtree.c (kd-tree extremes) and
+ * stress_lights.c (distant and infinite lights).
  *
  * Every file checks through check.h shared (PF_CHECK_SHARED); the counts
  * live in test_stress.c, so the closing line counts the whole program. */
@@ -29,6 +30,8 @@ void stress_test_invariance(void);
 void stress_test_geometry(void);
 void stress_test_degenerate(void);
 void stress_test_kdtree(void);
+void stress_test_distant(void); /* stress_lights.c */
+void stress_test_sky(void);     /* stress_lights.c */
 
 /* Scene building: materials, watertight boxes, spheres, point lights, the
  * camera, and settings for a small, fast render. */

@@ -1,4 +1,4 @@
-/* test_stress.c: the numerical stress suite (issue 5), in six ctests chosen
+/* test_stress.c: the numerical stress suite (issue 5), in eight ctests chosen
  * by argv[1]; docs/stress.md lists every case with its bound, why the bound
  * is right, and the values measured.
  *
@@ -30,6 +30,13 @@
  *   kdtree      kd-tree extremes: 0, 1 and 2 photons, all photons at one
  *               point, 20 M photons (4 M under AddressSanitizer) against
  *               brute force, with build time and memory per photon printed.
+ *   distant     a diffuse plane under a distant light (the sun): direct
+ *               light kd / pi * E cos in every pixel, the stored flux
+ *               E cos A, the photon map's mean; a blocker's sharp shadow in
+ *               the full render, and the light a grey one sends into it.
+ *   sky         a constant sky's furnace: a diffuse sphere of albedo a
+ *               reads a L with all terms, the background L, the stored flux
+ *               4 pi^2 r^2 L; a lossless glass sphere reads L everywhere.
  *
  * Every render is checked for NaN, Inf and negative channels, both by the
  * job's own count and by a scan here. Seeds are fixed, so each measured value
@@ -37,7 +44,7 @@
  * docs/stress.md) and below what the regressions they guard against give.
  * With PF_STRESS_DUMP=dir every checked image is also written to dir.
  *
- * Usage: test_stress [furnace|plane|invariance|geometry|degenerate|kdtree|all],
+ * Usage: test_stress [furnace|plane|invariance|geometry|degenerate|kdtree|distant|sky|all],
  * from the repository root (scene and data paths are relative to it).
  *
  * This file holds main and the check counts; stress.h says where the
@@ -70,6 +77,10 @@ int main(int argc, char **argv)
         stress_test_degenerate();
     if (all || !strcmp(what, "kdtree"))
         stress_test_kdtree();
+    if (all || !strcmp(what, "distant"))
+        stress_test_distant();
+    if (all || !strcmp(what, "sky"))
+        stress_test_sky();
     printf("stress %s: %.1f s\n", what, pf_now() - t0);
     return pf_test_finish();
 }
