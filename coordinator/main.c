@@ -455,7 +455,7 @@ static void s_plan(const pf_scene_t *scene, const s_render_args *a, const pf_set
     size_t ntris = 0;
     for (size_t i = 0; i < scene->nmeshes; i++)
         ntris += scene->meshes[i].ntris;
-    pf_info("scene %s: %zu triangles, %zu spheres, %zu materials, %zu point/spot lights (%.2f s to load)", a->path, ntris,
+    pf_info("scene %s: %zu triangles, %zu spheres, %zu materials, %zu point, spot, sun or sky lights (%.2f s to load)", a->path, ntris,
             scene->nspheres, scene->nmats, scene->nlights, pf_now() - t0);
     if (time_limit > 0) {
         int render_threads;
