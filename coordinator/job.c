@@ -3,6 +3,7 @@
  * Called from the main thread. */
 #include "coordinator/job.h"
 
+#include <errno.h>
 #include <math.h>
 #include <omp.h>
 #include <stdio.h>
@@ -12,6 +13,7 @@
 
 #include "base/log.h"
 #include "coordinator/accum.h"
+#include "coordinator/checkpoint.h"
 #include "coordinator/progress.h"
 
 enum { S_TILE = 32 };
@@ -131,6 +133,54 @@ static void s_pass_log(const pf_job_summary_t *sum, const pf_settings_t *s, cons
     (void)total;
 }
 
+/* Resuming (run->resume): the checkpoint's passes into *acc. Returns the
+ * first pass to render (0: none there), or a status with err filled (a
+ * checkpoint of another render, or a malformed one). In process only
+ * whole passes are kept. */
+static int s_resume(const pf_job_run_t *run, uint64_t key, const pf_settings_t *base, pf_accum_t *acc,
+                    pf_job_summary_t *sum, pf_error_t *err)
+{
+    if (!run->resume || !run->checkpoint)
+        return 0;
+    pf_ckpt_t c;
+    pf_error_t e = { { 0 } };
+    int rc = pf_ckpt_read(run->checkpoint, key, base->width, base->height, &c, &e);
+    if (rc == PF_EIO) {
+        pf_info("no checkpoint to resume from (%s): starting afresh", e.msg);
+        return 0;
+    }
+    if (rc != PF_OK) {
+        *err = e;
+        return rc;
+    }
+    if (!c.has_acc || c.ntiles) {
+        pf_ckpt_free(&c);
+        return pf_error_set(err, PF_EMISMATCH, run->checkpoint, 0, "the checkpoint is of another render");
+    }
+    pf_accum_free(acc);
+    *acc = c.acc;
+    c.has_acc = 0;
+    int first = c.passes_done;
+    pf_ckpt_free(&c);
+    sum->passes = sum->passes_whole = first;
+    pf_info("resuming from %s: %d pass%s done", run->checkpoint, first, first == 1 ? "" : "es");
+    return first;
+}
+
+/* The passes done (first `passes` of them, in acc) to the checkpoint. */
+static void s_checkpoint(const pf_job_run_t *run, uint64_t key, const pf_settings_t *base, int passes,
+                         const pf_accum_t *acc, const pf_image_t *img)
+{
+    if (!run->checkpoint)
+        return;
+    pf_settings_t next = *base;
+    next.pass = passes;
+    next.seed = pf_pass_seed(base->seed, passes);
+    pf_error_t e = { { 0 } };
+    if (pf_ckpt_write(run->checkpoint, key, passes, acc, &next, img, NULL, 0, &e) != PF_OK)
+        pf_warn("checkpoint not written: %s", e.msg);
+}
+
 /* Progressive passes into img (allocated), as run says. */
 static int s_progressive(pf_frame_t *frame, const pf_settings_t *base, unsigned terms, const pf_job_run_t *run,
                          pf_image_t *img, pf_job_summary_t *sum, pf_error_t *err)
@@ -139,6 +189,12 @@ static int s_progressive(pf_frame_t *frame, const pf_settings_t *base, unsigned 
     if (pf_accum_init(&acc, base->width, base->height) != PF_OK)
         return pf_error_set(err, PF_ENOMEM, NULL, 0, "cannot allocate the passes' %dx%d sums", base->width,
                             base->height);
+    uint64_t key = pf_ckpt_key(frame->scene, base, terms, run->passes, run->budget != NULL, S_TILE);
+    int first = s_resume(run, key, base, &acc, sum, err);
+    if (first < 0) {
+        pf_accum_free(&acc);
+        return first;
+    }
     pf_budget_t *b = run->budget;
     pf_settings_t plan = *base;
     int rc = b ? pf_budget_plan_photons(b, frame, &plan) : PF_OK; /* calibration: the photon rate */
@@ -147,14 +203,14 @@ static int s_progressive(pf_frame_t *frame, const pf_settings_t *base, unsigned 
     double deadline = b ? pf_budget_tiles_deadline(b) : INFINITY;
     int tiles = ((base->width + S_TILE - 1) / S_TILE) * ((base->height + S_TILE - 1) / S_TILE);
     sum->error_est = NAN;
-    for (int pass = 0; rc == PF_OK && pass < PF_MAX_PASSES; pass++) {
+    for (int pass = first; rc == PF_OK && pass < PF_MAX_PASSES; pass++) {
         if ((run->passes > 0 && pass >= run->passes) || (run->stop && *run->stop))
             break;
         pf_settings_t s = *base;
         s.pass = pass;
         s.seed = pf_pass_seed(base->seed, pass);
         double t0 = pf_now();
-        if (b && pf_budget_plan_pass_photons(b, pass, &s))
+        if (b && pf_budget_plan_pass_photons(b, pass, &s) && pass > first)
             break; /* no pass fits in the time left */
         rc = s_photons(frame, &s, run->show_progress, sum, err);
         if (rc == PF_EINTERRUPTED && run->stop && *run->stop)
@@ -175,7 +231,7 @@ static int s_progressive(pf_frame_t *frame, const pf_settings_t *base, unsigned 
         pf_progress_begin(&bar, "render", run->show_progress);
         double t1 = pf_now();
         /* The first pass always finishes (the image needs every tile), unless stopped. */
-        int done = s_render_pass(&ctx, s.threads, &acc, pass ? deadline : INFINITY, run->stop, &bar);
+        int done = s_render_pass(&ctx, s.threads, &acc, pass > first ? deadline : INFINITY, run->stop, &bar);
         pf_progress_end(&bar);
         double render_s = pf_now() - t1;
         sum->render_s += render_s;
@@ -186,6 +242,7 @@ static int s_progressive(pf_frame_t *frame, const pf_settings_t *base, unsigned 
             sum->spp_total += (uint64_t)s.spp;
             if (b)
                 pf_budget_pass_done(b, s.spp, render_s);
+            s_checkpoint(run, key, base, pass + 1, &acc, img);
         } else {
             sum->cut_tiles = done;
             sum->cut_total = tiles;
@@ -205,6 +262,8 @@ static int s_progressive(pf_frame_t *frame, const pf_settings_t *base, unsigned 
         if (sum->unreached == (size_t)base->width * (size_t)base->height)
             rc = pf_error_set(err, PF_EINTERRUPTED, NULL, 0, "interrupted before any tile was done");
     }
+    if (rc == PF_OK && !sum->interrupted && run->checkpoint && remove(run->checkpoint) != 0 && errno != ENOENT)
+        pf_warn("cannot remove the checkpoint %s: %s", run->checkpoint, strerror(errno));
     pf_accum_free(&acc);
     return rc;
 }

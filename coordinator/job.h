@@ -46,6 +46,9 @@ typedef struct pf_job_run {
     int passes;             /* progressive passes (0: one, or as many as the time limit allows) */
     volatile int *stop;     /* when it becomes non-zero (a signal), the render stops at the next tile and the
                                passes done make the image; NULL: never */
+    const char *checkpoint; /* progressive passes: the passes done are kept there (checkpoint.h) after each, and
+                               the file removed when the render ends well; NULL: none */
+    int resume;             /* go on from the checkpoint's passes (none there: start afresh) */
 } pf_job_run_t;
 
 /* Renders scene with settings (size, threads, photons, ...) and terms (a

@@ -91,8 +91,9 @@ static void s_usage(FILE *f)
             "                           returning wrong pixels is evicted and its tiles rendered again\n"
             "                           (0.02; 0: no checks)\n"
             "      --max-wait S         give up when no worker is connected for S seconds (0: never)\n"
-            "      --checkpoint FILE    keep the render's progress there (after each pass, and every 5 s\n"
-            "                           of tiles), removed when it ends well (OUTPUT.ckpt; none: no file)\n"
+            "      --checkpoint FILE    keep the render's progress there (farm: after each pass and every\n"
+            "                           5 s of tiles; in process: after each progressive pass), removed\n"
+            "                           when it ends well (OUTPUT.ckpt; none: no file)\n"
             "      --resume             go on from the checkpoint after a crash: the same image, bit for\n"
             "                           bit, as an uninterrupted render (none there: start afresh)\n"
             "      --worker-exe PATH    the worker program for --workers (default: beside photonfarm)\n"
@@ -395,9 +396,9 @@ static int s_parse_render_args(int argc, char **argv, s_render_args *a)
         return EXIT_USAGE;
     }
     a->path = argv[optind];
-    if (farm->resume && a->workers == 0 && !farm->bind) {
-        fprintf(stderr, "photonfarm render: --resume continues a farm render (--workers N or --bind); a render in "
-                        "this process keeps no checkpoint\n");
+    if (farm->resume && a->workers == 0 && !farm->bind && a->passes <= 1 && !(a->time_limit > 0)) {
+        fprintf(stderr, "photonfarm render: --resume continues a farm render (--workers N or --bind) or progressive "
+                        "passes (--passes, --time-limit); a one-pass render in this process keeps no checkpoint\n");
         return EXIT_USAGE;
     }
     if (!a->out) {
@@ -481,6 +482,17 @@ static void s_plan(const pf_scene_t *scene, const s_render_args *a, const pf_set
     }
 }
 
+/* Where the render keeps its checkpoint: --checkpoint, or OUTPUT.ckpt; NULL
+ * for --checkpoint none. */
+static const char *s_checkpoint_path(s_render_args *a)
+{
+    if (!a->checkpoint) {
+        snprintf(a->ckptbuf, sizeof a->ckptbuf, "%s.ckpt", a->out);
+        return a->ckptbuf;
+    }
+    return strcmp(a->checkpoint, "none") ? a->checkpoint : NULL;
+}
+
 /* The farm: --threads is per local worker; the photon pass uses every core
  * here. Takes *scene_p. Returns 0, or the exit code of a failed render. */
 static int s_render_farm(pf_scene_t **scene_p, s_render_args *a, pf_budget_t *budget, pf_settings_t *s,
@@ -492,12 +504,7 @@ static int s_render_farm(pf_scene_t **scene_p, s_render_args *a, pf_budget_t *bu
     farm->show_progress = 1;
     farm->budget = a->time_limit > 0 ? budget : NULL;
     farm->passes = a->passes;
-    if (!a->checkpoint) {
-        snprintf(a->ckptbuf, sizeof a->ckptbuf, "%s.ckpt", a->out);
-        farm->checkpoint = a->ckptbuf;
-    } else {
-        farm->checkpoint = strcmp(a->checkpoint, "none") ? a->checkpoint : NULL;
-    }
+    farm->checkpoint = s_checkpoint_path(a);
     s->threads = 0;
     s_catch_signals(s_on_signal);
     signal(SIGPIPE, SIG_IGN);
@@ -531,7 +538,7 @@ static int s_render_farm(pf_scene_t **scene_p, s_render_args *a, pf_budget_t *bu
 
 /* The render in this process. Takes *scene_p. Returns 0, or the exit code
  * of a failed render. */
-static int s_render_here(pf_scene_t **scene_p, const s_render_args *a, pf_budget_t *budget, const pf_settings_t *s,
+static int s_render_here(pf_scene_t **scene_p, s_render_args *a, pf_budget_t *budget, const pf_settings_t *s,
                          pf_image_t *img, pf_job_summary_t *sum, pf_error_t *err)
 {
     /* Progressive passes stop at the next tile and write what they have;
@@ -539,12 +546,15 @@ static int s_render_here(pf_scene_t **scene_p, const s_render_args *a, pf_budget
     int progressive = a->time_limit > 0 || a->passes > 1;
     s_catch_signals(progressive ? s_on_signal : s_on_signal_exit);
     pf_job_run_t run = { .show_progress = 1, .budget = a->time_limit > 0 ? budget : NULL, .passes = a->passes,
-                         .stop = &s_interrupted };
+                         .stop = &s_interrupted, .checkpoint = progressive ? s_checkpoint_path(a) : NULL,
+                         .resume = a->farm.resume };
     int rc = pf_job_render(*scene_p, s, a->terms, &run, img, sum, err);
     pf_scene_destroy(scene_p);
     if (rc != PF_OK) {
         pf_error("render failed: %s", err->msg);
-        return rc == PF_EINTERRUPTED ? 128 + (s_interrupted ? (int)s_interrupted : SIGINT) : EXIT_RENDER;
+        if (rc == PF_EINTERRUPTED)
+            return 128 + (s_interrupted ? (int)s_interrupted : SIGINT);
+        return rc == PF_EMISMATCH || rc == PF_EPARSE ? EXIT_INPUT : EXIT_RENDER;
     }
     return 0;
 }

@@ -467,6 +467,24 @@ for v in 0 -1 abc; do
     run "${PS[@]}" --passes "$v" -o "$T/x.png"
     check "--passes $v exits 2" rc_is 2
 done
+# In process, progressive passes keep a checkpoint: kill -9 after the second
+# pass, --resume, and the image is the uninterrupted one, bit for bit.
+PR=(render "$SCENES/cornell-spheres/scene.json" --size 96x96 --spp 4 --photons 30000 --caustic-photons 30000
+    --passes 4 --threads 2)
+run "${PR[@]}" -o "$T/pr_ref.png" --hdr "$T/pr_ref.pfm"
+"$PF" "${PR[@]}" -o "$T/pr.png" --hdr "$T/pr.pfm" >"$T/pr.out" 2>"$T/pr.err" &
+prpid=$!
+for i in $(seq 600); do grep -q "pass 2: " "$T/pr.err" 2>/dev/null && break; sleep 0.05; done
+kill -9 "$prpid" 2>/dev/null
+wait "$prpid" 2>/dev/null
+check "kill -9 after the second pass leaves a checkpoint" test -s "$T/pr.png.ckpt"
+run "${PR[@]}" -o "$T/pr.png" --hdr "$T/pr.pfm" --resume
+check "--resume in process finishes (exit 0)" rc_is 0
+check "... from the passes the checkpoint holds" err_has "resuming from $T/pr.png.ckpt: "
+check "... with the uninterrupted image, bit for bit" cmp -s "$T/pr.pfm" "$T/pr_ref.pfm"
+check "... and removes the checkpoint" test ! -e "$T/pr.png.ckpt"
+run render "$SCENES/cornell-spheres/scene.json" --size 32x32 -o "$T/x.png" --resume
+check "--resume of a one-pass render in process exits 2" rc_is 2
 for v in 0 -1 abc 1e9; do
     run render "$SCENES/cornell-box/scene.json" --time-limit "$v" -o "$T/x.png"
     check "--time-limit $v exits 2" rc_is 2
