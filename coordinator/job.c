@@ -129,7 +129,7 @@ static void s_pass_log(const pf_job_summary_t *sum, const pf_settings_t *s, cons
         snprintf(err, sizeof err, ", est. relMSE %.2g", sum->error_est);
     pf_info("pass %d: %d spp, %llu photons (%llu so far), radius x%.3f, %.2f s%s%s%s", s->pass + 1, s->spp,
             (unsigned long long)(s->photons + s->caustic_photons), (unsigned long long)sum->photons_total,
-            sqrt((double)ctx->shrink2), pass_s, done < total ? " (cut at the deadline)" : "", err, left);
+            sqrt((double)ctx->shrink2), pass_s, done < total ? " (cut short)" : "", err, left);
     (void)total;
 }
 
