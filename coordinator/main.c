@@ -482,6 +482,19 @@ static void s_plan(const pf_scene_t *scene, const s_render_args *a, const pf_set
     }
 }
 
+/* The exit code of a render a signal stopped: 128 + its number, as a
+ * shell reports it (130, 143). */
+static int s_signal_code(void) { return 128 + (s_interrupted ? (int)s_interrupted : SIGINT); }
+
+/* The exit code of a failed render: a signal's, 3 for a checkpoint of
+ * another render or a malformed one, else 1. */
+static int s_failure_code(int rc)
+{
+    if (rc == PF_EINTERRUPTED)
+        return s_signal_code();
+    return rc == PF_EMISMATCH || rc == PF_EPARSE ? EXIT_INPUT : EXIT_RENDER;
+}
+
 /* Where the render keeps its checkpoint: --checkpoint, or OUTPUT.ckpt; NULL
  * for --checkpoint none. */
 static const char *s_checkpoint_path(s_render_args *a)
@@ -513,9 +526,7 @@ static int s_render_farm(pf_scene_t **scene_p, s_render_args *a, pf_budget_t *bu
     pf_scene_destroy(scene_p);
     if (rc != PF_OK) {
         pf_error("render failed: %s", err->msg);
-        if (rc == PF_EINTERRUPTED)
-            return 128 + (s_interrupted ? (int)s_interrupted : SIGINT);
-        return rc == PF_EMISMATCH || rc == PF_EPARSE ? EXIT_INPUT : EXIT_RENDER;
+        return s_failure_code(rc);
     }
     pf_farm_summary_log(&fs);
     sum->bad_pixels = fs.bad_pixels;
@@ -552,9 +563,7 @@ static int s_render_here(pf_scene_t **scene_p, s_render_args *a, pf_budget_t *bu
     pf_scene_destroy(scene_p);
     if (rc != PF_OK) {
         pf_error("render failed: %s", err->msg);
-        if (rc == PF_EINTERRUPTED)
-            return 128 + (s_interrupted ? (int)s_interrupted : SIGINT);
-        return rc == PF_EMISMATCH || rc == PF_EPARSE ? EXIT_INPUT : EXIT_RENDER;
+        return s_failure_code(rc);
     }
     return 0;
 }
@@ -626,7 +635,7 @@ static int s_cmd_render(int argc, char **argv)
         return code;
     code = s_write_output(&a, &s, &img, &sum, t0, &err);
     if (code == 0 && sum.interrupted)
-        code = 128 + (s_interrupted ? (int)s_interrupted : SIGINT);
+        code = s_signal_code();
     return code;
 }
 
