@@ -1,0 +1,551 @@
+#!/usr/bin/env python3
+"""scale.py: a scaling model of the render farm, checked against measurements.
+
+The model predicts a one-pass farm render's wall time on W workers from the
+costs of its parts, each measured on this machine (--measure writes them to
+bench/results/scale-costs.json, so the inputs are visible) and from the
+links' bandwidth and latency:
+
+  coordinator   load the scene; photon pass: trace (on its cores), kd-tree
+                build, irradiance points, serialize the maps blob
+  distribution  every worker fetches the scene and maps blobs (1 MiB chunks,
+                8 in flight per worker) from the coordinator, whose link and
+                serving rate are shared by all; with fan-out the coordinator
+                sends each chunk once and workers pass chunks on down a
+                binary tree (depth log2 W, one chunk of pipelining per level)
+  worker build  each worker builds its Embree scene, reads the maps and
+                fills its irradiance texels (in parallel on every worker)
+  tiles         the tiles go to W x threads slots, one tile per core at a
+                time (whole rounds: the last round is what granularity
+                costs); the coordinator handles one RESULT at a time (its
+                per-message cost) and receives 12 bytes a pixel
+  distributed tracing (switch): workers get the scene first, trace the
+                photons in parallel and upload the photon records (32 bytes
+                each) to the coordinator, which still builds the kd-trees and
+                the irradiance points on its own cores
+
+Efficiency E(W) = T(1) / (W T(W)), the same model and configuration at one
+worker. Defaults: a worker and the coordinator are each a machine like this
+one (its cores, its measured costs), a 10 Gbit/s link with a 0.1 ms round
+trip. Scenes: the Bitterli dining room (a pbrt-v4 interior) at 1280x720 and
+the Cornell box at 512x512.
+
+--check validates the model on network-namespace hosts
+(tests/integration/scale_hosts.sh): a coordinator and 1..6 workers on this
+machine, every link a tbf token bucket so that the link, not the 2 cores,
+limits; the costs of that small configuration are measured first by separate
+local runs (not fitted to the namespace runs), the model predicts each run
+with this machine's cores shared by all "hosts", and the error is printed.
+It ends with "efficiency at 64 workers: E; model error on measured hosts: V %"
+(V: the mean absolute error over the runs). --quick: the ctest version.
+
+Standard library only. Plots are SVG written here (no matplotlib needed).
+"""
+
+import argparse
+import datetime
+import json
+import math
+import os
+import re
+import subprocess
+import sys
+import tempfile
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(HERE)
+COSTS = os.path.join(HERE, 'results', 'scale-costs.json')
+VALIDATION = os.path.join(HERE, 'results', 'scale-validation.json')
+
+CHUNK = 1 << 20           # proto/messages.h PF_PROTO_CHUNK_SIZE
+WINDOW = 8 * CHUNK        # coordinator's blob window per worker
+PHOTON_BYTES = 32         # a photon record on the wire (docs/benchmarks.md)
+RESULT_BYTES_PER_PIXEL = 12
+
+# Scenes of the model: (name, scene, full size, render options, size at
+# which the per-pixel render cost is measured).
+DINING = '/work/shared/scenes/bitterli/dining-room/scene-v4.pbrt'
+SCENES = {
+    'interior': dict(scene=os.path.join(ROOT, '..', 'shared', 'scenes', 'bitterli', 'dining-room', 'scene-v4.pbrt'),
+                     label='Bitterli dining room (pbrt-v4 interior), 1280x720',
+                     size=(1280, 720), measure_size=(160, 90),
+                     opts=['--spp', '64', '--photons', '1000000', '--caustic-photons', '200000']),
+    'cornell': dict(scene=os.path.join(ROOT, 'scenes', 'cornell-box', 'scene.json'),
+                    label='Cornell box (scenes/cornell-box), 512x512',
+                    size=(512, 512), measure_size=(128, 128),
+                    opts=['--spp', '36', '--photons', '400000']),
+}
+# The validation's configuration: small enough to render in seconds, with a
+# maps blob (~15 MB) that takes seconds on the limited links.
+VALID = dict(scene=os.path.join(ROOT, 'scenes', 'cornell-box', 'scene.json'),
+             size=(128, 128), opts=['--spp', '4', '--photons', '200000'])
+
+
+def log(msg):
+    sys.stderr.write('[scale] %s\n' % msg)
+    sys.stderr.flush()
+
+
+# ---------------------------------------------------------------- measuring
+
+TS = re.compile(r'^(\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d\.\d+)Z ')
+
+
+def stamp(line):
+    m = TS.match(line)
+    if not m:
+        return None
+    return datetime.datetime.strptime(m.group(1), '%Y-%m-%dT%H:%M:%S.%f').timestamp()
+
+
+def first(lines, regex):
+    r = re.compile(regex)
+    for ln in lines:
+        m = r.search(ln)
+        if m:
+            return ln, m
+    return None, None
+
+
+def parse_farm_log(text):
+    """Figures of a farm render's -v log (coordinator and, for local workers,
+    their lines too): load, photon pass, blob sizes, worker fetch/build, tiles."""
+    lines = text.splitlines()
+    out = {}
+    _, m = first(lines, r'\(([\d.]+) s to load\)')
+    out['load_s'] = float(m.group(1)) if m else 0.0
+    ln, m = first(lines, r'photon pass: (\d+) global \+ (\d+) caustic photons, (\d+) irradiance points; '
+                         r'scene blob (\d+) bytes, map blob (\d+) bytes')
+    if m:
+        out['stored'] = int(m.group(1)) + int(m.group(2))
+        out['irradiance_points'] = int(m.group(3))
+        out['scene_bytes'] = int(m.group(4))
+        out['maps_bytes'] = int(m.group(5))
+        out['t_job'] = stamp(ln)
+    _, m = first(lines, r'summary: photon pass ([\d.]+) s, render ([\d.]+) s, total ([\d.]+) s')
+    if m:
+        out['photon_s'], out['render_s'], out['total_s'] = map(float, m.groups())
+    ln, m = first(lines, r'summary: (\d+) tiles')
+    out['tiles'] = int(m.group(1)) if m else 0
+    out['t_summary'] = stamp(ln) if ln else None
+    _, m = first(lines, r'done in ([\d.]+) s')
+    out['done_s'] = float(m.group(1)) if m else None
+    # The first worker's maps fetch and build (local-1 or w1).
+    ln, _ = first(lines, r'blob [0-9a-f]+ complete \((\d{6,}) bytes\)')
+    t_fetched = stamp(ln) if ln else None
+    ln, _ = first(lines, r'job \d+: ready \(')
+    t_ready = stamp(ln) if ln else None
+    ln, _ = first(lines, r'fetching the (scene|maps) blob')
+    t_fetch0 = stamp(ln) if ln else None
+    if t_fetched and t_ready:
+        out['wbuild_s'] = t_ready - t_fetched
+    if t_fetch0 and t_fetched:
+        out['fetch_s'] = t_fetched - t_fetch0
+    if t_ready and out.get('t_summary'):
+        out['tiles_s'] = out['t_summary'] - t_ready
+    return out
+
+
+def parse_inprocess_log(text):
+    m = re.search(r'\(trace ([\d.]+) s, kd-trees ([\d.]+) s, irradiance ([\d.]+) s\)', text)
+    if not m:
+        return {}
+    return dict(zip(('trace_s', 'kd_s', 'irradiance_s'), map(float, m.groups())))
+
+
+def run(cmd, timeout=3600):
+    t0 = time.monotonic()
+    p = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, timeout=timeout)
+    if p.returncode != 0:
+        raise RuntimeError('%s failed (%d): %s' % (' '.join(cmd), p.returncode, p.stderr[-800:]))
+    return p.stderr, time.monotonic() - t0
+
+
+def loadavg():
+    try:
+        return float(open('/proc/loadavg').read().split()[0])
+    except OSError:
+        return None
+
+
+def measure_scene(exe, scene, size, opts, mw, mh, threads, work):
+    """One scene's costs: a local farm render (1 worker x `threads`) at the
+    measure size for the coordinator's pass, blob sizes, the worker's build
+    and the tiles; an in-process photon pass (tiny image) for the split of
+    trace / kd-trees / irradiance."""
+    out = os.path.join(work, 'm.png')
+    text, wall = run([exe, 'render', scene, '-o', out, '--size', '%dx%d' % (mw, mh)] + opts +
+                     ['--workers', '1', '--threads', str(threads), '--verify', '0', '-v'])
+    f = parse_farm_log(text)
+    text2, _ = run([exe, 'render', scene, '-o', out, '--size', '16x16'] + opts +
+                   ['--spp', '1', '--threads', str(os.cpu_count()), '-v'])
+    f.update(parse_inprocess_log(text2))
+    px = mw * mh
+    c = dict(scene=os.path.relpath(os.path.realpath(scene), ROOT), size=list(size), opts=opts,
+             measured_at='%dx%d' % (mw, mh), worker_threads=threads,
+             load_s=f['load_s'], trace_s=f.get('trace_s'), kd_s=f.get('kd_s'),
+             irradiance_s=f.get('irradiance_s'), coord_photon_s=f['photon_s'],
+             stored_photons=f['stored'], scene_bytes=f['scene_bytes'], maps_bytes=f['maps_bytes'],
+             wbuild_s=f.get('wbuild_s'), measured_tiles=f['tiles'], measured_tiles_s=f.get('tiles_s'),
+             # core-seconds per pixel: the worker's tile time x its threads / pixels
+             core_s_per_pixel=f['tiles_s'] * threads / px, wall_s=wall)
+    log('%s: %s' % (os.path.basename(os.path.dirname(scene)) or scene, json.dumps(c)))
+    return c
+
+
+def measure_transfer(work):
+    """bench_transfer at 1M photons: serialize rate and the loopback
+    serving rate (sender and receiver on this machine)."""
+    exe = os.path.join(ROOT, 'build', 'bin', 'bench_transfer')
+    p = subprocess.run([exe, '1000000'], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, timeout=600)
+    t = p.stdout
+    blob = int(re.search(r'blob\s+(\d+) bytes', t).group(1))
+    ser = float(re.search(r'serialize\s+([\d.]+) s', t).group(1))
+    wire = float(re.search(r'transfer\s+([\d.]+) s', t).group(1))
+    return dict(serialize_Bps=blob / ser, serve_Bps=blob / wire, blob_bytes=blob, source='build/bin/bench_transfer 1000000')
+
+
+def measure_message(exe, work):
+    """Per-message overhead: the coordinator's time per tile of a render
+    that does almost nothing per tile (emitted light only, 8x8 tiles, one
+    local worker): an upper bound of the round trip TILE -> RESULT."""
+    scene = os.path.join(ROOT, 'scenes', 'cornell-box', 'scene.json')
+    text, _ = run([exe, 'render', scene, '-o', os.path.join(work, 'msg.png'), '--size', '256x256', '--spp', '1',
+                   '--photons', '1000', '--caustic-photons', '0', '--terms', 'emitted', '--tile', '8',
+                   '--workers', '1', '--threads', '1', '--verify', '0', '-v'])
+    f = parse_farm_log(text)
+    return dict(per_tile_s=f['tiles_s'] / f['tiles'], tiles=f['tiles'], tiles_s=f['tiles_s'],
+                source='256x256 --terms emitted --tile 8, 1 local worker x 1 thread')
+
+
+def measure_cores(exe, work):
+    """Cores this process really gets now (the machine is shared): the
+    in-process render time at 1 thread over that at all cores."""
+    scene = VALID['scene']
+    ts = {}
+    for th in (1, os.cpu_count()):
+        text, _ = run([exe, 'render', scene, '-o', os.path.join(work, 'c.png'), '--size', '96x96', '--spp', '4',
+                       '--photons', '20000', '--threads', str(th), '-v'])
+        ts[th] = float(re.search(r'render ([\d.]+) s', text.splitlines()[-1]).group(1))
+    return ts[1] / ts[os.cpu_count()]
+
+
+def measure_validation(exe, work):
+    """The validation configuration's costs, by local runs (loopback, no
+    namespace): what the coordinator and one 1-thread worker spend."""
+    w, h = VALID['size']
+    return measure_scene(exe, VALID['scene'], VALID['size'], VALID['opts'], w, h, 1, work)
+
+
+def cmd_measure(args):
+    exe = args.photonfarm
+    work = tempfile.mkdtemp(prefix='pf_scale_')
+    costs = dict(machine=dict(cores=os.cpu_count(), loadavg_before=loadavg(),
+                              when=datetime.datetime.utcnow().strftime('%Y-%m-%d %H:%M UTC'),
+                              commit=subprocess.run(['git', 'rev-parse', '--short=12', 'HEAD'], cwd=ROOT,
+                                                    stdout=subprocess.PIPE, text=True).stdout.strip()))
+    costs['transfer'] = measure_transfer(work)
+    costs['message'] = measure_message(exe, work)
+    costs['scenes'] = {}
+    for name, s in SCENES.items():
+        if args.scenes and name not in args.scenes:
+            continue
+        mw, mh = s['measure_size']
+        costs['scenes'][name] = measure_scene(exe, s['scene'], s['size'], s['opts'], mw, mh, os.cpu_count(), work)
+    costs['machine']['loadavg_after'] = loadavg()
+    os.makedirs(os.path.dirname(COSTS), exist_ok=True)
+    with open(COSTS, 'w') as fh:
+        json.dump(costs, fh, indent=1, sort_keys=True)
+    log('wrote %s' % COSTS)
+    return costs
+
+
+# ---------------------------------------------------------------- the model
+
+def tiles_of(w, h, tile):
+    return math.ceil(w / tile) * math.ceil(h / tile)
+
+
+def predict(c, common, W, link_bps=10e9, coord_bps=None, rtt_s=1e-4, fanout=False, dtrace=False,
+            threads=None, coord_cores=None, tile=32, shared_cores=None, size=None, parts=False):
+    """Wall time (s) of one render of scene costs `c` on W workers.
+
+    link_bps: each worker's link (bits/s); coord_bps: the coordinator's
+    (default the same); threads: per worker (default the measured worker's);
+    shared_cores: all hosts share this many cores (the namespace hosts on
+    this machine), else every host has its own."""
+    threads = threads or c['worker_threads']
+    coord_cores = coord_cores or common['machine']['cores']
+    r = link_bps / 8
+    R = (coord_bps or link_bps) / 8
+    serve = common['transfer']['serve_Bps']          # the coordinator's chunk serving rate
+    R_eff = min(R, serve)
+    ser_s = c['maps_bytes'] / common['transfer']['serialize_Bps']
+    S_scene, S_maps = c['scene_bytes'], c['maps_bytes']
+    # a flow's rate: its link, the window over the round trip
+    flow = min(r, WINDOW / rtt_s) if rtt_s > 0 else r
+
+    def spread(nbytes, n):
+        """n workers fetch nbytes each from the coordinator."""
+        if n <= 0 or nbytes <= 0:
+            return 0.0
+        if fanout:
+            depth = math.ceil(math.log2(n)) if n > 1 else 0
+            # each node (the coordinator too) passes every chunk on to 2 children
+            rate = min(R_eff / min(2, n), flow / 2 if n > 1 else flow)
+            return nbytes / rate + depth * (min(CHUNK, nbytes) / (flow / 2) + rtt_s) + rtt_s
+        return max(n * nbytes / R_eff, nbytes / flow) + 2 * rtt_s
+
+    # CPU sharing: concurrent CPU work of k threads on hosts of shared_cores
+    def slow(k):
+        return max(1.0, k / shared_cores) if shared_cores else 1.0
+
+    t = {}
+    t['load'] = c['load_s']
+    trace, kd, irr = c['trace_s'], c['kd_s'], c['irradiance_s']
+    # The coordinator's measured pass: its parts at this machine's cores.
+    if dtrace:
+        t['scene'] = spread(S_scene, W)
+        trace_core_s = trace * common['machine']['cores']
+        t_trace = trace_core_s / (W * threads) * slow(W * threads)
+        up = c['stored_photons'] * PHOTON_BYTES
+        t_up = max(up / R, up / W / r) + rtt_s
+        t['trace'] = max(t_trace, t_up)
+        S = S_maps
+    else:
+        t['scene'] = 0.0
+        t['trace'] = trace * common['machine']['cores'] / coord_cores
+        S = S_maps + S_scene
+    t['kd+irradiance'] = (kd + irr) * common['machine']['cores'] / coord_cores
+    t['serialize'] = ser_s
+    t['distribute'] = spread(S, W)
+    t['worker build'] = c['wbuild_s'] * slow(W * threads)
+    w, h = size or c['size']
+    n = tiles_of(w, h, tile)
+    px_tile = w * h / n
+    t_tile = c['core_s_per_pixel'] * px_tile
+    slots = W * threads
+    rounds = math.ceil(n / slots)
+    t_tiles = rounds * t_tile * slow(slots)
+    t_msgs = n * common['message']['per_tile_s']
+    t_res = n * px_tile * RESULT_BYTES_PER_PIXEL / R
+    t['tiles'] = max(t_tiles, t_msgs, t_res) + rtt_s
+    total = sum(t.values())
+    return (total, t) if parts else total
+
+
+def efficiency(c, common, W, **kw):
+    return predict(c, common, 1, **kw) / (W * predict(c, common, W, **kw))
+
+
+# ---------------------------------------------------------------- validation
+
+def cmd_check(args, costs):
+    exe = args.photonfarm
+    pfw = os.path.join(os.path.dirname(exe), 'photonfarm-worker')
+    work = tempfile.mkdtemp(prefix='pf_scale_check_')
+    counts = args.workers or ([1, 2, 4] if args.quick else [1, 2, 3, 4, 5, 6])
+    coord_mbit, worker_mbit = (args.coord_mbit, args.worker_mbit)
+    log('validation costs: local runs of the validation configuration (no namespaces)')
+    vc = measure_validation(exe, work)
+    cores = measure_cores(exe, work)
+    log('cores this machine gives now: %.2f of %d' % (cores, os.cpu_count()))
+    w, h = VALID['size']
+    cmd = ['bash', os.path.join(ROOT, 'tests', 'integration', 'scale_hosts.sh'), exe, pfw, work,
+           str(coord_mbit), str(worker_mbit), '1', ' '.join(map(str, counts)), VALID['scene'],
+           '--size', '%dx%d' % (w, h)] + VALID['opts']
+    log('namespace hosts: ' + ' '.join(cmd))
+    p = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, timeout=1800)
+    sys.stdout.write(p.stdout)
+    if p.returncode == 77:
+        print('SKIP: namespace hosts impossible here: ' + p.stdout.strip().splitlines()[-1])
+        return 77
+    m = re.search(r'rtt_ms=([\d.]+)', p.stdout)
+    rtt = float(m.group(1)) / 1000 if m else 1e-4
+    rows = []
+    for ln in p.stdout.splitlines():
+        m = re.match(r'run W=(\d+) rc=(\d+) wall=([\d.]+)', ln)
+        if not m:
+            continue
+        W, rc = int(m.group(1)), int(m.group(2))
+        if rc != 0:
+            print('run W=%d failed (exit %d):' % (W, rc))
+            print(open(os.path.join(work, 'w%d.err' % W)).read()[-1500:])
+            return 1
+        f = parse_farm_log(open(os.path.join(work, 'w%d.err' % W)).read())
+        measured = f['done_s']
+        pred, parts = predict(vc, costs_for_validation(costs, cores), W, link_bps=worker_mbit * 1e6,
+                              coord_bps=coord_mbit * 1e6, rtt_s=rtt, threads=1, tile=32,
+                              shared_cores=cores, parts=True)
+        err = (pred - measured) / measured * 100
+        rows.append(dict(W=W, measured_s=measured, predicted_s=pred, error_pct=err,
+                         parts={k: round(v, 3) for k, v in parts.items()}))
+        print('W=%d  measured %6.2f s  predicted %6.2f s  error %+5.1f %%   (%s)' % (
+            W, measured, pred, err, ', '.join('%s %.2f' % kv for kv in parts.items())))
+    if not rows:
+        print('no namespace run completed')
+        return 1
+    t1m = next((r['measured_s'] for r in rows if r['W'] == 1), None)
+    t1p = next((r['predicted_s'] for r in rows if r['W'] == 1), None)
+    for r in rows:
+        if t1m and t1p:
+            r['measured_eff'] = t1m / (r['W'] * r['measured_s'])
+            r['predicted_eff'] = t1p / (r['W'] * r['predicted_s'])
+    mean_err = sum(abs(r['error_pct']) for r in rows) / len(rows)
+    max_err = max(abs(r['error_pct']) for r in rows)
+    res = dict(when=datetime.datetime.utcnow().strftime('%Y-%m-%d %H:%M UTC'), quick=args.quick,
+               coord_mbit=coord_mbit, worker_mbit=worker_mbit, rtt_s=rtt, cores_available=cores,
+               loadavg=loadavg(), config=dict(VALID, scene=os.path.relpath(VALID['scene'], ROOT)),
+               costs=vc, runs=rows, mean_abs_error_pct=mean_err, max_abs_error_pct=max_err)
+    if not args.quick:
+        with open(VALIDATION, 'w') as fh:
+            json.dump(res, fh, indent=1, sort_keys=True)
+        log('wrote %s' % VALIDATION)
+    e64 = efficiency(costs['scenes']['interior'], costs, 64)
+    print('model error on measured hosts: mean %.1f %%, max %.1f %% over %d runs (coordinator link %g Mbit/s, '
+          'worker links %g Mbit/s)' % (mean_err, max_err, len(rows), coord_mbit, worker_mbit))
+    print('efficiency at 64 workers: %.3f; model error on measured hosts: %.1f %%' % (e64, mean_err))
+    return 0 if mean_err <= args.max_error else 1
+
+
+def costs_for_validation(costs, cores):
+    """The machine-wide costs (serialize, serving, per message) with the
+    coordinator's cores as measured now."""
+    c = dict(costs)
+    c['machine'] = dict(costs['machine'], cores=os.cpu_count())
+    return c
+
+
+# ---------------------------------------------------------------- report
+
+WS = [1, 2, 4, 8, 16, 32, 64, 128, 256]
+VARIANTS = [('today', {}), ('fan-out', dict(fanout=True)), ('distributed tracing', dict(dtrace=True)),
+            ('both', dict(fanout=True, dtrace=True))]
+
+
+def table(costs, name, **kw):
+    c = costs['scenes'][name]
+    lines = ['| workers | ' + ' | '.join('%s: wall s / E' % v for v, _ in VARIANTS) + ' |',
+             '|---|' + '---|' * len(VARIANTS)]
+    for W in WS:
+        cells = []
+        for _, vk in VARIANTS:
+            a = dict(kw, **vk)
+            cells.append('%.1f / %.3f' % (predict(c, costs, W, **a), efficiency(c, costs, W, **a)))
+        lines.append('| %d | %s |' % (W, ' | '.join(cells)))
+    return '\n'.join(lines)
+
+
+def breakdown(costs, name, W, **kw):
+    total, parts = predict(costs['scenes'][name], costs, W, parts=True, **kw)
+    return '%d workers: %.1f s = %s' % (W, total, ', '.join('%s %.2f' % kv for kv in parts.items() if kv[1] > 0.005))
+
+
+def svg_plot(path, title, series, xs_log=True, ylabel='efficiency'):
+    """A small log2-x line plot, by hand. series: [(label, colour, [(x, y)], dashed)]."""
+    Wd, Ht, L, R_, T, B = 640, 360, 60, 170, 30, 45
+    xmin, xmax = 1, 256
+    ymin, ymax = 0.0, 1.05
+
+    def X(x):
+        return L + (math.log2(x) - math.log2(xmin)) / (math.log2(xmax) - math.log2(xmin)) * (Wd - L - R_)
+
+    def Y(y):
+        return T + (1 - (y - ymin) / (ymax - ymin)) * (Ht - T - B)
+    o = ['<svg xmlns="http://www.w3.org/2000/svg" width="%d" height="%d" font-family="sans-serif" '
+         'font-size="11">' % (Wd, Ht), '<rect width="100%" height="100%" fill="white"/>',
+         '<text x="%d" y="18" font-size="13">%s</text>' % (L, title)]
+    for k in range(0, 9):
+        x = 2 ** k
+        o.append('<line x1="%.1f" y1="%d" x2="%.1f" y2="%d" stroke="#ddd"/>' % (X(x), T, X(x), Ht - B))
+        o.append('<text x="%.1f" y="%d" text-anchor="middle">%d</text>' % (X(x), Ht - B + 14, x))
+    for k in range(0, 11, 2):
+        y = k / 10
+        o.append('<line x1="%d" y1="%.1f" x2="%d" y2="%.1f" stroke="#ddd"/>' % (L, Y(y), Wd - R_, Y(y)))
+        o.append('<text x="%d" y="%.1f" text-anchor="end">%.1f</text>' % (L - 4, Y(y) + 4, y))
+    o.append('<text x="%d" y="%d" text-anchor="middle">workers</text>' % ((L + Wd - R_) / 2, Ht - 8))
+    o.append('<text x="14" y="%d" transform="rotate(-90 14 %d)" text-anchor="middle">%s</text>' % (
+        (T + Ht - B) / 2, (T + Ht - B) / 2, ylabel))
+    o.append('<line x1="%d" y1="%.1f" x2="%d" y2="%.1f" stroke="#888" stroke-dasharray="2,3"/>' % (
+        L, Y(0.9), Wd - R_, Y(0.9)))
+    for i, (label, col, pts, dashed) in enumerate(series):
+        pts = [(x, y) for x, y in pts if xmin <= x <= xmax]
+        d = ' '.join('%.1f,%.1f' % (X(x), Y(max(ymin, min(ymax, y)))) for x, y in pts)
+        o.append('<polyline fill="none" stroke="%s" stroke-width="2" %s points="%s"/>' % (
+            col, 'stroke-dasharray="6,4"' if dashed else '', d))
+        for x, y in pts:
+            o.append('<circle cx="%.1f" cy="%.1f" r="2.5" fill="%s"/>' % (X(x), Y(max(ymin, min(ymax, y))), col))
+        ly = T + 10 + 16 * i
+        o.append('<line x1="%d" y1="%d" x2="%d" y2="%d" stroke="%s" stroke-width="2" %s/>' % (
+            Wd - R_ + 10, ly, Wd - R_ + 30, ly, col, 'stroke-dasharray="6,4"' if dashed else ''))
+        o.append('<text x="%d" y="%d">%s</text>' % (Wd - R_ + 34, ly + 4, label))
+    o.append('</svg>')
+    with open(path, 'w') as fh:
+        fh.write('\n'.join(o) + '\n')
+
+
+COLOURS = ['#1f77b4', '#ff7f0e', '#2ca02c', '#d62728', '#9467bd', '#8c564b']
+
+
+def cmd_report(costs, args):
+    out = []
+    for name in SCENES:
+        if name not in costs['scenes']:
+            continue
+        c = costs['scenes'][name]
+        out.append('### %s\n' % SCENES[name]['label'])
+        out.append('10 Gbit/s links, 0.1 ms round trip, 2-thread workers, tile 32:\n')
+        out.append(table(costs, name))
+        out.append('')
+        for W in (64, 256):
+            for vn, vk in VARIANTS:
+                out.append('- %s, %s' % (vn, breakdown(costs, name, W, **vk)))
+        out.append('')
+        series = [(vn, COLOURS[i], [(W, efficiency(c, costs, W, **vk)) for W in WS], False)
+                  for i, (vn, vk) in enumerate(VARIANTS)]
+        series.append(('both, tile 16', COLOURS[4], [(W, efficiency(c, costs, W, fanout=True, dtrace=True, tile=16))
+                                                      for W in WS], True))
+        if args.plots:
+            svg_plot(os.path.join(args.plots, 'scaling-%s.svg' % name),
+                     'predicted efficiency: %s' % SCENES[name]['label'], series)
+    if os.path.exists(VALIDATION) and args.plots:
+        v = json.load(open(VALIDATION))
+        runs = v['runs']
+        svg_plot(os.path.join(args.plots, 'scaling-measured.svg'),
+                 'namespace hosts: %g Mbit/s coordinator link, %g Mbit/s workers' % (v['coord_mbit'], v['worker_mbit']),
+                 [('measured', COLOURS[3], [(r['W'], r['measured_eff']) for r in runs], False),
+                  ('model', COLOURS[0], [(r['W'], r['predicted_eff']) for r in runs], True)])
+    text = '\n'.join(out)
+    print(text)
+    return text
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
+    ap.add_argument('--measure', action='store_true', help='measure the per-part costs on this machine, '
+                    'write bench/results/scale-costs.json')
+    ap.add_argument('--scenes', nargs='*', help='with --measure: only these (interior, cornell)')
+    ap.add_argument('--check', action='store_true', help='validate against namespace hosts')
+    ap.add_argument('--quick', action='store_true', help='with --check: 1, 2 and 4 workers (ctest scale)')
+    ap.add_argument('--workers', type=int, nargs='*', help='with --check: these worker counts (1..6)')
+    ap.add_argument('--coord-mbit', type=float, default=60, help='coordinator link in --check (60)')
+    ap.add_argument('--worker-mbit', type=float, default=200, help='worker links in --check (200)')
+    ap.add_argument('--max-error', type=float, default=20, help='--check fails above this mean error (20 %%)')
+    ap.add_argument('--plots', help='write SVG plots into this folder (e.g. docs/images)')
+    ap.add_argument('--photonfarm', default=os.path.join(ROOT, 'build', 'bin', 'photonfarm'))
+    args = ap.parse_args(argv)
+    if args.measure:
+        costs = cmd_measure(args)
+    else:
+        costs = json.load(open(COSTS))
+    if args.check:
+        return cmd_check(args, costs)
+    cmd_report(costs, args)
+    print('efficiency at 64 workers (interior, today / fan-out / distributed tracing / both): %s' % ' / '.join(
+        '%.3f' % efficiency(costs['scenes']['interior'], costs, 64, **vk) for _, vk in VARIANTS))
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
