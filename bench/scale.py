@@ -71,6 +71,10 @@ SCENES = {
                      label='Bitterli dining room (pbrt-v4 interior), 1280x720',
                      size=(1280, 720), measure_size=(160, 90),
                      opts=['--spp', '64', '--photons', '1000000', '--caustic-photons', '200000']),
+    'interior-hq': dict(scene=os.path.join(ROOT, '..', 'shared', 'scenes', 'bitterli', 'dining-room', 'scene-v4.pbrt'),
+                        label='Bitterli dining room, 1280x720, final quality (spp 256)',
+                        size=(1280, 720), measure_size=(160, 90),
+                        opts=['--spp', '256', '--photons', '1000000', '--caustic-photons', '200000']),
     'cornell': dict(scene=os.path.join(ROOT, 'scenes', 'cornell-box', 'scene.json'),
                     label='Cornell box (scenes/cornell-box), 512x512',
                     size=(512, 512), measure_size=(128, 128),
@@ -80,6 +84,9 @@ SCENES = {
 # maps blob (~15 MB) that takes seconds on the limited links.
 VALID = dict(scene=os.path.join(ROOT, 'scenes', 'cornell-box', 'scene.json'),
              size=(128, 128), opts=['--spp', '4', '--photons', '200000'])
+
+
+EXE = os.path.join(ROOT, 'build', 'bin', 'photonfarm')
 
 
 def log(msg):
@@ -197,7 +204,7 @@ def measure_scene(exe, scene, size, opts, mw, mh, threads, work):
 def measure_transfer(work):
     """bench_transfer at 1M photons: serialize rate and the loopback
     serving rate (sender and receiver on this machine)."""
-    exe = os.path.join(ROOT, 'build', 'bin', 'bench_transfer')
+    exe = os.path.join(os.path.dirname(os.path.abspath(EXE)), 'bench_transfer')
     p = subprocess.run([exe, '1000000'], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, timeout=600)
     t = p.stdout
     blob = int(re.search(r'blob\s+(\d+) bytes', t).group(1))
@@ -248,6 +255,8 @@ def cmd_measure(args):
     costs['transfer'] = measure_transfer(work)
     costs['message'] = measure_message(exe, work)
     costs['scenes'] = {}
+    if args.scenes and os.path.exists(COSTS):
+        costs['scenes'] = json.load(open(COSTS)).get('scenes', {})
     for name, s in SCENES.items():
         if args.scenes and name not in args.scenes:
             continue
@@ -344,16 +353,50 @@ def efficiency(c, common, W, **kw):
 def cmd_check(args, costs):
     exe = args.photonfarm
     pfw = os.path.join(os.path.dirname(exe), 'photonfarm-worker')
+    if os.geteuid() != 0:
+        print('SKIP: the namespace hosts need root (network namespaces, veth pairs, a bridge, tc)')
+        return 77
     work = tempfile.mkdtemp(prefix='pf_scale_check_')
     counts = args.workers or ([1, 2, 4] if args.quick else [1, 2, 3, 4, 5, 6])
-    coord_mbit, worker_mbit = (args.coord_mbit, args.worker_mbit)
+    links = [tuple(float(x) for x in l.split(':')) for l in args.links.split(',')]
     log('validation costs: local runs of the validation configuration (no namespaces)')
     vc = measure_validation(exe, work)
+    common = dict(machine=dict(cores=os.cpu_count()), transfer=measure_transfer(work),
+                  message=measure_message(exe, work))
     cores = measure_cores(exe, work)
     log('cores this machine gives now: %.2f of %d' % (cores, os.cpu_count()))
+    rows, rtts = [], []
+    for coord_mbit, worker_mbit in links:
+        rc = s_validate_links(exe, pfw, work, vc, common, cores, counts, coord_mbit, worker_mbit, rows, rtts)
+        if rc:
+            return rc
+    if not rows:
+        print('no namespace run completed')
+        return 1
+    mean_err = sum(abs(r['error_pct']) for r in rows) / len(rows)
+    max_err = max(abs(r['error_pct']) for r in rows)
+    res = dict(when=datetime.datetime.utcnow().strftime('%Y-%m-%d %H:%M UTC'), quick=args.quick,
+               links=links, rtt_s=rtts, cores_available=cores,
+               loadavg=loadavg(), config=dict(VALID, scene=os.path.relpath(VALID['scene'], ROOT)),
+               costs=vc, common=common, runs=rows, mean_abs_error_pct=mean_err, max_abs_error_pct=max_err)
+    if not args.quick:
+        with open(VALIDATION, 'w') as fh:
+            json.dump(res, fh, indent=1, sort_keys=True)
+        log('wrote %s' % VALIDATION)
+    e64 = headline(costs)
+    print('model error on measured hosts: mean %.1f %%, max %.1f %% over %d runs (links coordinator:worker Mbit/s %s)'
+          % (mean_err, max_err, len(rows), args.links))
+    print('efficiency at 64 workers: %.3f; model error on measured hosts: %.1f %%' % (e64, mean_err))
+    return 0 if mean_err <= args.max_error else 1
+
+
+def s_validate_links(exe, pfw, work, vc, common, cores, counts, coord_mbit, worker_mbit, rows, rtts):
+    """The namespace runs at one link setting, each against the model's
+    prediction; appends to rows. Returns 0, 77 (skip) or 1."""
     w, h = VALID['size']
-    cmd = ['bash', os.path.join(ROOT, 'tests', 'integration', 'scale_hosts.sh'), exe, pfw, work,
-           str(coord_mbit), str(worker_mbit), '1', ' '.join(map(str, counts)), VALID['scene'],
+    out = os.path.join(work, 'c%g-w%g' % (coord_mbit, worker_mbit))
+    cmd = ['bash', os.path.join(ROOT, 'tests', 'integration', 'scale_hosts.sh'), exe, pfw, out,
+           '%g' % coord_mbit, '%g' % worker_mbit, '1', ' '.join(map(str, counts)), VALID['scene'],
            '--size', '%dx%d' % (w, h)] + VALID['opts']
     log('namespace hosts: ' + ' '.join(cmd))
     p = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, timeout=1800)
@@ -363,7 +406,8 @@ def cmd_check(args, costs):
         return 77
     m = re.search(r'rtt_ms=([\d.]+)', p.stdout)
     rtt = float(m.group(1)) / 1000 if m else 1e-4
-    rows = []
+    rtts.append(rtt)
+    mine = []
     for ln in p.stdout.splitlines():
         m = re.match(r'run W=(\d+) rc=(\d+) wall=([\d.]+)', ln)
         if not m:
@@ -371,50 +415,27 @@ def cmd_check(args, costs):
         W, rc = int(m.group(1)), int(m.group(2))
         if rc != 0:
             print('run W=%d failed (exit %d):' % (W, rc))
-            print(open(os.path.join(work, 'w%d.err' % W)).read()[-1500:])
+            print(open(os.path.join(out, 'w%d.err' % W)).read()[-1500:])
             return 1
-        f = parse_farm_log(open(os.path.join(work, 'w%d.err' % W)).read())
+        f = parse_farm_log(open(os.path.join(out, 'w%d.err' % W)).read())
         measured = f['done_s']
-        pred, parts = predict(vc, costs_for_validation(costs, cores), W, link_bps=worker_mbit * 1e6,
+        pred, parts = predict(vc, common, W, link_bps=worker_mbit * 1e6,
                               coord_bps=coord_mbit * 1e6, rtt_s=rtt, threads=1, tile=32,
                               shared_cores=cores, parts=True)
         err = (pred - measured) / measured * 100
-        rows.append(dict(W=W, measured_s=measured, predicted_s=pred, error_pct=err,
-                         parts={k: round(v, 3) for k, v in parts.items()}))
-        print('W=%d  measured %6.2f s  predicted %6.2f s  error %+5.1f %%   (%s)' % (
-            W, measured, pred, err, ', '.join('%s %.2f' % kv for kv in parts.items())))
-    if not rows:
-        print('no namespace run completed')
-        return 1
-    t1m = next((r['measured_s'] for r in rows if r['W'] == 1), None)
-    t1p = next((r['predicted_s'] for r in rows if r['W'] == 1), None)
-    for r in rows:
+        mine.append(dict(W=W, coord_mbit=coord_mbit, worker_mbit=worker_mbit, measured_s=measured,
+                         predicted_s=pred, error_pct=err, parts={k: round(v, 3) for k, v in parts.items()}))
+        print('%g:%g Mbit/s W=%d  measured %6.2f s  predicted %6.2f s  error %+5.1f %%   (%s)' % (
+            coord_mbit, worker_mbit, W, measured, pred, err,
+            ', '.join('%s %.2f' % kv for kv in parts.items() if kv[1] > 0.005)))
+    t1m = next((r['measured_s'] for r in mine if r['W'] == 1), None)
+    t1p = next((r['predicted_s'] for r in mine if r['W'] == 1), None)
+    for r in mine:
         if t1m and t1p:
             r['measured_eff'] = t1m / (r['W'] * r['measured_s'])
             r['predicted_eff'] = t1p / (r['W'] * r['predicted_s'])
-    mean_err = sum(abs(r['error_pct']) for r in rows) / len(rows)
-    max_err = max(abs(r['error_pct']) for r in rows)
-    res = dict(when=datetime.datetime.utcnow().strftime('%Y-%m-%d %H:%M UTC'), quick=args.quick,
-               coord_mbit=coord_mbit, worker_mbit=worker_mbit, rtt_s=rtt, cores_available=cores,
-               loadavg=loadavg(), config=dict(VALID, scene=os.path.relpath(VALID['scene'], ROOT)),
-               costs=vc, runs=rows, mean_abs_error_pct=mean_err, max_abs_error_pct=max_err)
-    if not args.quick:
-        with open(VALIDATION, 'w') as fh:
-            json.dump(res, fh, indent=1, sort_keys=True)
-        log('wrote %s' % VALIDATION)
-    e64 = efficiency(costs['scenes']['interior'], costs, 64)
-    print('model error on measured hosts: mean %.1f %%, max %.1f %% over %d runs (coordinator link %g Mbit/s, '
-          'worker links %g Mbit/s)' % (mean_err, max_err, len(rows), coord_mbit, worker_mbit))
-    print('efficiency at 64 workers: %.3f; model error on measured hosts: %.1f %%' % (e64, mean_err))
-    return 0 if mean_err <= args.max_error else 1
-
-
-def costs_for_validation(costs, cores):
-    """The machine-wide costs (serialize, serving, per message) with the
-    coordinator's cores as measured now."""
-    c = dict(costs)
-    c['machine'] = dict(costs['machine'], cores=os.cpu_count())
-    return c
+    rows.extend(mine)
+    return 0
 
 
 # ---------------------------------------------------------------- report
@@ -442,10 +463,10 @@ def breakdown(costs, name, W, **kw):
     return '%d workers: %.1f s = %s' % (W, total, ', '.join('%s %.2f' % kv for kv in parts.items() if kv[1] > 0.005))
 
 
-def svg_plot(path, title, series, xs_log=True, ylabel='efficiency'):
+def svg_plot(path, title, series, xmax=256, ylabel='efficiency'):
     """A small log2-x line plot, by hand. series: [(label, colour, [(x, y)], dashed)]."""
     Wd, Ht, L, R_, T, B = 640, 360, 60, 170, 30, 45
-    xmin, xmax = 1, 256
+    xmin = 1
     ymin, ymax = 0.0, 1.05
 
     def X(x):
@@ -456,7 +477,7 @@ def svg_plot(path, title, series, xs_log=True, ylabel='efficiency'):
     o = ['<svg xmlns="http://www.w3.org/2000/svg" width="%d" height="%d" font-family="sans-serif" '
          'font-size="11">' % (Wd, Ht), '<rect width="100%" height="100%" fill="white"/>',
          '<text x="%d" y="18" font-size="13">%s</text>' % (L, title)]
-    for k in range(0, 9):
+    for k in range(0, int(math.log2(xmax)) + 1):
         x = 2 ** k
         o.append('<line x1="%.1f" y1="%d" x2="%.1f" y2="%d" stroke="#ddd"/>' % (X(x), T, X(x), Ht - B))
         o.append('<text x="%.1f" y="%d" text-anchor="middle">%d</text>' % (X(x), Ht - B + 14, x))
@@ -511,14 +532,64 @@ def cmd_report(costs, args):
                      'predicted efficiency: %s' % SCENES[name]['label'], series)
     if os.path.exists(VALIDATION) and args.plots:
         v = json.load(open(VALIDATION))
-        runs = v['runs']
+        series = []
+        for i, (cm, wm) in enumerate(v['links']):
+            runs = [r for r in v['runs'] if r['coord_mbit'] == cm and r['worker_mbit'] == wm]
+            series.append(('measured %g:%g' % (cm, wm), COLOURS[2 * i + 1],
+                           [(r['W'], r['measured_eff']) for r in runs], False))
+            series.append(('model %g:%g' % (cm, wm), COLOURS[2 * i], [(r['W'], r['predicted_eff']) for r in runs], True))
         svg_plot(os.path.join(args.plots, 'scaling-measured.svg'),
-                 'namespace hosts: %g Mbit/s coordinator link, %g Mbit/s workers' % (v['coord_mbit'], v['worker_mbit']),
-                 [('measured', COLOURS[3], [(r['W'], r['measured_eff']) for r in runs], False),
-                  ('model', COLOURS[0], [(r['W'], r['predicted_eff']) for r in runs], True)])
+                 'namespace hosts (coordinator:worker link, Mbit/s)', series, xmax=8)
+    if os.path.exists(VALIDATION):
+        v = json.load(open(VALIDATION))
+        out.append('### Measured: namespace hosts\n')
+        out.append('%s, %s; links (tc tbf, both ways) coordinator:worker %s Mbit/s, round trip %s ms (ping), '
+                   '1-thread workers; this machine gave %.2f cores at the time (load average %s); %s.\n' % (
+                       v['config']['scene'], ' '.join(['--size', '%dx%d' % tuple(v['config']['size'])] +
+                                                      v['config']['opts']),
+                       ' and '.join('%g:%g' % tuple(l) for l in v['links']),
+                       ', '.join('%.3f' % (x * 1000) for x in v['rtt_s']), v['cores_available'], v['loadavg'],
+                       v['when']))
+        out.append('| links Mbit/s | workers | measured s | predicted s | error | measured E | predicted E | predicted parts (s) |')
+        out.append('|---|---|---|---|---|---|---|---|')
+        for r in v['runs']:
+            out.append('| %g:%g | %d | %.2f | %.2f | %+.1f %% | %.3f | %.3f | %s |' % (
+                r['coord_mbit'], r['worker_mbit'], r['W'], r['measured_s'], r['predicted_s'], r['error_pct'], r.get('measured_eff', float('nan')),
+                r.get('predicted_eff', float('nan')),
+                ', '.join('%s %.2f' % kv for kv in r['parts'].items() if kv[1] > 0.005)))
+        out.append('\nMean absolute error %.1f %%, largest %.1f %%.' % (v['mean_abs_error_pct'], v['max_abs_error_pct']))
+        out.append('')
     text = '\n'.join(out)
     print(text)
+    if args.docs:
+        doc = os.path.join(ROOT, 'docs', 'scaling.md')
+        d = open(doc).read()
+        b, e = '<!-- BEGIN GENERATED scale', '<!-- END GENERATED scale -->'
+        i = d.index(b)
+        i = d.index('\n', i) + 1
+        j = d.index(e)
+        with open(doc, 'w') as fh:
+            fh.write(d[:i] + '\n' + text + '\n' + d[j:])
+        log('wrote %s' % doc)
     return text
+
+
+# The headline configuration: the interior at final quality on 64 workers
+# with both features, --tile 16, 10 Gbit/s links (docs/scaling.md says why).
+HEADLINE = dict(scene='interior-hq', fanout=True, dtrace=True, tile=16)
+
+
+def headline(costs, out=sys.stdout):
+    kw = dict(HEADLINE)
+    c = costs['scenes'][kw.pop('scene')]
+    for name in ('interior', 'interior-hq'):
+        if name not in costs['scenes']:
+            continue
+        out.write('%s at 64 workers, 10 Gbit/s: %s\n' % (name, ', '.join(
+            '%s%s E %.3f' % (vn, t16, efficiency(costs['scenes'][name], costs, 64, tile=tile, **vk))
+            for vn, vk in VARIANTS for tile, t16 in ((32, ''), (16, ' tile 16')))))
+    out.write('headline: %s, 64 workers, fan-out + distributed tracing, tile 16, 10 Gbit/s\n' % SCENES['interior-hq']['label'])
+    return efficiency(c, costs, 64, **kw)
 
 
 def main(argv=None):
@@ -529,12 +600,20 @@ def main(argv=None):
     ap.add_argument('--check', action='store_true', help='validate against namespace hosts')
     ap.add_argument('--quick', action='store_true', help='with --check: 1, 2 and 4 workers (ctest scale)')
     ap.add_argument('--workers', type=int, nargs='*', help='with --check: these worker counts (1..6)')
-    ap.add_argument('--coord-mbit', type=float, default=60, help='coordinator link in --check (60)')
-    ap.add_argument('--worker-mbit', type=float, default=200, help='worker links in --check (200)')
+    ap.add_argument('--links', help='with --check: link settings COORD_MBIT:WORKER_MBIT,... (default '
+                    '60:200,400:60: the coordinator\'s link limits, then each worker\'s; --quick: 60:200)')
     ap.add_argument('--max-error', type=float, default=20, help='--check fails above this mean error (20 %%)')
     ap.add_argument('--plots', help='write SVG plots into this folder (e.g. docs/images)')
+    ap.add_argument('--docs', action='store_true', help='rewrite the generated part of docs/scaling.md and '
+                    'its plots docs/images/scaling-*.svg')
     ap.add_argument('--photonfarm', default=os.path.join(ROOT, 'build', 'bin', 'photonfarm'))
     args = ap.parse_args(argv)
+    if not args.links:
+        args.links = '60:200' if args.quick else '60:200,400:60'
+    if args.docs and not args.plots:
+        args.plots = os.path.join(ROOT, 'docs', 'images')
+    global EXE
+    EXE = args.photonfarm
     if args.measure:
         costs = cmd_measure(args)
     else:
@@ -542,8 +621,7 @@ def main(argv=None):
     if args.check:
         return cmd_check(args, costs)
     cmd_report(costs, args)
-    print('efficiency at 64 workers (interior, today / fan-out / distributed tracing / both): %s' % ' / '.join(
-        '%.3f' % efficiency(costs['scenes']['interior'], costs, 64, **vk) for _, vk in VARIANTS))
+    print('efficiency at 64 workers: %.3f' % headline(costs))
     return 0
 
 
