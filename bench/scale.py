@@ -176,18 +176,42 @@ def loadavg():
         return None
 
 
-def measure_scene(exe, scene, size, opts, mw, mh, threads, work):
+def median(xs):
+    xs = sorted(x for x in xs if x is not None)
+    if not xs:
+        return None
+    n = len(xs)
+    return xs[n // 2] if n % 2 else (xs[n // 2 - 1] + xs[n // 2]) / 2
+
+
+def median_dict(ds):
+    """Field by field median of the numeric fields of several parses (the
+    machine is shared: one run's time can be off by half)."""
+    out = dict(ds[0])
+    for k, v in ds[0].items():
+        if isinstance(v, (int, float)):
+            out[k] = median([d.get(k) for d in ds])
+    return out
+
+
+def measure_scene(exe, scene, size, opts, mw, mh, threads, work, reps=1):
     """One scene's costs: a local farm render (1 worker x `threads`) at the
     measure size for the coordinator's pass, blob sizes, the worker's build
     and the tiles; an in-process photon pass (tiny image) for the split of
-    trace / kd-trees / irradiance."""
+    trace / kd-trees / irradiance. With reps > 1, the median of each."""
     out = os.path.join(work, 'm.png')
-    text, wall = run([exe, 'render', scene, '-o', out, '--size', '%dx%d' % (mw, mh)] + opts +
-                     ['--workers', '1', '--threads', str(threads), '--verify', '0', '-v'])
-    f = parse_farm_log(text)
-    text2, _ = run([exe, 'render', scene, '-o', out, '--size', '16x16'] + opts +
-                   ['--spp', '1', '--threads', str(os.cpu_count()), '-v'])
-    f.update(parse_inprocess_log(text2))
+    fs, ps, walls = [], [], []
+    for _ in range(reps):
+        text, wall = run([exe, 'render', scene, '-o', out, '--size', '%dx%d' % (mw, mh)] + opts +
+                         ['--workers', '1', '--threads', str(threads), '--verify', '0', '-v'])
+        fs.append(parse_farm_log(text))
+        walls.append(wall)
+        text2, _ = run([exe, 'render', scene, '-o', out, '--size', '16x16'] + opts +
+                       ['--spp', '1', '--threads', str(os.cpu_count()), '-v'])
+        ps.append(parse_inprocess_log(text2))
+    f = median_dict(fs)
+    f.update(median_dict(ps))
+    wall = median(walls)
     px = mw * mh
     c = dict(scene=os.path.relpath(os.path.realpath(scene), ROOT), size=list(size), opts=opts,
              measured_at='%dx%d' % (mw, mh), worker_threads=threads,
@@ -205,12 +229,17 @@ def measure_transfer(work):
     """bench_transfer at 1M photons: serialize rate and the loopback
     serving rate (sender and receiver on this machine)."""
     exe = os.path.join(os.path.dirname(os.path.abspath(EXE)), 'bench_transfer')
-    p = subprocess.run([exe, '1000000'], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, timeout=600)
-    t = p.stdout
-    blob = int(re.search(r'blob\s+(\d+) bytes', t).group(1))
-    ser = float(re.search(r'serialize\s+([\d.]+) s', t).group(1))
-    wire = float(re.search(r'transfer\s+([\d.]+) s', t).group(1))
-    return dict(serialize_Bps=blob / ser, serve_Bps=blob / wire, blob_bytes=blob, source='build/bin/bench_transfer 1000000')
+    runs = []
+    for _ in range(3):
+        p = subprocess.run([exe, '1000000'], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, timeout=600)
+        t = p.stdout
+        blob = int(re.search(r'blob\s+(\d+) bytes', t).group(1))
+        ser = float(re.search(r'serialize\s+([\d.]+) s', t).group(1))
+        wire = float(re.search(r'transfer\s+([\d.]+) s', t).group(1))
+        runs.append(dict(serialize_Bps=blob / ser, serve_Bps=blob / wire, blob_bytes=blob))
+    out = median_dict(runs)
+    out['source'] = 'build/bin/bench_transfer 1000000, median of 3'
+    return out
 
 
 def measure_message(exe, work):
@@ -230,19 +259,22 @@ def measure_cores(exe, work):
     """Cores this process really gets now (the machine is shared): the
     in-process render time at 1 thread over that at all cores."""
     scene = VALID['scene']
-    ts = {}
-    for th in (1, os.cpu_count()):
-        text, _ = run([exe, 'render', scene, '-o', os.path.join(work, 'c.png'), '--size', '96x96', '--spp', '4',
-                       '--photons', '20000', '--threads', str(th), '-v'])
-        ts[th] = float(re.search(r'render ([\d.]+) s', text.splitlines()[-1]).group(1))
-    return ts[1] / ts[os.cpu_count()]
+    ratios = []
+    for _ in range(3):
+        ts = {}
+        for th in (1, os.cpu_count()):
+            text, _ = run([exe, 'render', scene, '-o', os.path.join(work, 'c.png'), '--size', '96x96', '--spp', '4',
+                           '--photons', '20000', '--threads', str(th), '-v'])
+            ts[th] = float(re.search(r'render ([\d.]+) s', text.splitlines()[-1]).group(1))
+        ratios.append(ts[1] / ts[os.cpu_count()])
+    return median(ratios)
 
 
 def measure_validation(exe, work):
     """The validation configuration's costs, by local runs (loopback, no
     namespace): what the coordinator and one 1-thread worker spend."""
     w, h = VALID['size']
-    return measure_scene(exe, VALID['scene'], VALID['size'], VALID['opts'], w, h, 1, work)
+    return measure_scene(exe, VALID['scene'], VALID['size'], VALID['opts'], w, h, 1, work, reps=3)
 
 
 def cmd_measure(args):
@@ -601,7 +633,7 @@ def main(argv=None):
     ap.add_argument('--quick', action='store_true', help='with --check: 1, 2 and 4 workers (ctest scale)')
     ap.add_argument('--workers', type=int, nargs='*', help='with --check: these worker counts (1..6)')
     ap.add_argument('--links', help='with --check: link settings COORD_MBIT:WORKER_MBIT,... (default '
-                    '60:200,400:60: the coordinator\'s link limits, then each worker\'s; --quick: 60:200)')
+                    '60:200,400:30: the coordinator\'s link limits, then each worker\'s; --quick: 60:200)')
     ap.add_argument('--max-error', type=float, default=20, help='--check fails above this mean error (20 %%)')
     ap.add_argument('--plots', help='write SVG plots into this folder (e.g. docs/images)')
     ap.add_argument('--docs', action='store_true', help='rewrite the generated part of docs/scaling.md and '
@@ -609,7 +641,7 @@ def main(argv=None):
     ap.add_argument('--photonfarm', default=os.path.join(ROOT, 'build', 'bin', 'photonfarm'))
     args = ap.parse_args(argv)
     if not args.links:
-        args.links = '60:200' if args.quick else '60:200,400:60'
+        args.links = '60:200' if args.quick else '60:200,400:30'
     if args.docs and not args.plots:
         args.plots = os.path.join(ROOT, 'docs', 'images')
     global EXE
