@@ -255,26 +255,25 @@ def measure_message(exe, work):
                 source='256x256 --terms emitted --tile 8, 1 local worker x 1 thread')
 
 
-def measure_cores(exe, work):
-    """Cores this process really gets now (the machine is shared): the
-    in-process render time at 1 thread over that at all cores."""
+def measure_slowdown(exe, work, k):
+    """How much slower each of k threads runs than one thread alone, now
+    (the machine is shared: with a background load the answer is not
+    k / cores): an in-process render's time at k threads over its time at 1,
+    times k (the work is the same)."""
     scene = VALID['scene']
-    ratios = []
-    for _ in range(3):
-        ts = {}
-        for th in (1, os.cpu_count()):
-            text, _ = run([exe, 'render', scene, '-o', os.path.join(work, 'c.png'), '--size', '96x96', '--spp', '4',
-                           '--photons', '20000', '--threads', str(th), '-v'])
-            ts[th] = float(re.search(r'render ([\d.]+) s', text.splitlines()[-1]).group(1))
-        ratios.append(ts[1] / ts[os.cpu_count()])
-    return median(ratios)
+    ts = {}
+    for th in sorted({1, k}):
+        text, _ = run([exe, 'render', scene, '-o', os.path.join(work, 'c.png'), '--size', '96x96', '--spp', '8',
+                       '--photons', '20000', '--threads', str(th), '-v'])
+        ts[th] = float(re.search(r'render ([\d.]+) s', text.splitlines()[-1]).group(1))
+    return max(1.0, ts[k] * k / ts[1])
 
 
-def measure_validation(exe, work):
+def measure_validation(exe, work, reps=3):
     """The validation configuration's costs, by local runs (loopback, no
     namespace): what the coordinator and one 1-thread worker spend."""
     w, h = VALID['size']
-    return measure_scene(exe, VALID['scene'], VALID['size'], VALID['opts'], w, h, 1, work, reps=3)
+    return measure_scene(exe, VALID['scene'], VALID['size'], VALID['opts'], w, h, 1, work, reps=reps)
 
 
 def cmd_measure(args):
@@ -309,12 +308,12 @@ def tiles_of(w, h, tile):
 
 
 def predict(c, common, W, link_bps=10e9, coord_bps=None, rtt_s=1e-4, fanout=False, dtrace=False,
-            threads=None, coord_cores=None, tile=32, shared_cores=None, size=None, parts=False):
+            threads=None, coord_cores=None, tile=32, shared=None, size=None, parts=False):
     """Wall time (s) of one render of scene costs `c` on W workers.
 
     link_bps: each worker's link (bits/s); coord_bps: the coordinator's
     (default the same); threads: per worker (default the measured worker's);
-    shared_cores: all hosts share this many cores (the namespace hosts on
+    shared: all hosts share this machine's cores (the namespace hosts on
     this machine), else every host has its own."""
     threads = threads or c['worker_threads']
     coord_cores = coord_cores or common['machine']['cores']
@@ -338,9 +337,17 @@ def predict(c, common, W, link_bps=10e9, coord_bps=None, rtt_s=1e-4, fanout=Fals
             return nbytes / rate + depth * (min(CHUNK, nbytes) / (flow / 2) + rtt_s) + rtt_s
         return max(n * nbytes / R_eff, nbytes / flow) + 2 * rtt_s
 
-    # CPU sharing: concurrent CPU work of k threads on hosts of shared_cores
+    # CPU sharing: k threads at once run `shared[k]` times slower each
+    # (measured), on hosts that share one machine
     def slow(k):
-        return max(1.0, k / shared_cores) if shared_cores else 1.0
+        if not shared:
+            return 1.0
+        ks = sorted(shared)
+        lo = max([x for x in ks if x <= k] or ks[:1])
+        hi = min([x for x in ks if x >= k] or ks[-1:])
+        if hi == lo:
+            return shared[lo]
+        return shared[lo] + (shared[hi] - shared[lo]) * (k - lo) / (hi - lo)
 
     t = {}
     t['load'] = c['load_s']
@@ -391,26 +398,23 @@ def cmd_check(args, costs):
     work = tempfile.mkdtemp(prefix='pf_scale_check_')
     counts = args.workers or ([1, 2, 4] if args.quick else [1, 2, 3, 4, 5, 6])
     links = [tuple(float(x) for x in l.split(':')) for l in args.links.split(',')]
-    log('validation costs: local runs of the validation configuration (no namespaces)')
-    vc = measure_validation(exe, work)
+    log('machine-wide costs: bench_transfer, per-message overhead')
     common = dict(machine=dict(cores=os.cpu_count()), transfer=measure_transfer(work),
                   message=measure_message(exe, work))
-    cores = measure_cores(exe, work)
-    log('cores this machine gives now: %.2f of %d' % (cores, os.cpu_count()))
     rows, rtts = [], []
     for coord_mbit, worker_mbit in links:
-        rc = s_validate_links(exe, pfw, work, vc, common, cores, counts, coord_mbit, worker_mbit, rows, rtts)
-        if rc:
-            return rc
-    if not rows:
-        print('no namespace run completed')
-        return 1
+        for W in counts:
+            rc = s_validate_run(exe, pfw, work, common, W, coord_mbit, worker_mbit, rows, rtts,
+                                reps=1 if args.quick else 3)
+            if rc:
+                return rc
     mean_err = sum(abs(r['error_pct']) for r in rows) / len(rows)
     max_err = max(abs(r['error_pct']) for r in rows)
     res = dict(when=datetime.datetime.utcnow().strftime('%Y-%m-%d %H:%M UTC'), quick=args.quick,
-               links=links, rtt_s=rtts, cores_available=cores,
-               loadavg=loadavg(), config=dict(VALID, scene=os.path.relpath(VALID['scene'], ROOT)),
-               costs=vc, common=common, runs=rows, mean_abs_error_pct=mean_err, max_abs_error_pct=max_err)
+               links=links, rtt_s=sorted(set(rtts)), loadavg=loadavg(),
+               config=dict(VALID, scene=os.path.relpath(VALID['scene'], ROOT)),
+               common=common, runs=rows, mean_abs_error_pct=mean_err, max_abs_error_pct=max_err)
+    s_efficiencies(rows)
     if not args.quick:
         with open(VALIDATION, 'w') as fh:
             json.dump(res, fh, indent=1, sort_keys=True)
@@ -422,52 +426,61 @@ def cmd_check(args, costs):
     return 0 if mean_err <= args.max_error else 1
 
 
-def s_validate_links(exe, pfw, work, vc, common, cores, counts, coord_mbit, worker_mbit, rows, rtts):
-    """The namespace runs at one link setting, each against the model's
-    prediction; appends to rows. Returns 0, 77 (skip) or 1."""
+def s_validate_run(exe, pfw, work, common, W, coord_mbit, worker_mbit, rows, rtts, reps=3):
+    """One namespace run (W workers at one link setting) against the model.
+    Just before it, the validation configuration's costs are measured by
+    local runs (loopback, no namespace: the coordinator's pass, one worker's
+    build and tiles) and so is the slowdown of W threads at once: the
+    machine is shared and its load moves within minutes, so the inputs are
+    taken at the time of the run (never from the run itself). Appends to
+    rows; returns 0, 77 (skip) or 1."""
+    vc = measure_validation(exe, work, reps)
+    slowdown = {1: 1.0}
+    if W > 1:
+        slowdown[W] = measure_slowdown(exe, work, W)
     w, h = VALID['size']
-    out = os.path.join(work, 'c%g-w%g' % (coord_mbit, worker_mbit))
+    out = os.path.join(work, 'c%g-w%g-%d' % (coord_mbit, worker_mbit, W))
     cmd = ['bash', os.path.join(ROOT, 'tests', 'integration', 'scale_hosts.sh'), exe, pfw, out,
-           '%g' % coord_mbit, '%g' % worker_mbit, '1', ' '.join(map(str, counts)), VALID['scene'],
+           '%g' % coord_mbit, '%g' % worker_mbit, '1', str(W), VALID['scene'],
            '--size', '%dx%d' % (w, h)] + VALID['opts']
-    log('namespace hosts: ' + ' '.join(cmd))
     p = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, timeout=1800)
-    sys.stdout.write(p.stdout)
     if p.returncode == 77:
         print('SKIP: namespace hosts impossible here: ' + p.stdout.strip().splitlines()[-1])
         return 77
     m = re.search(r'rtt_ms=([\d.]+)', p.stdout)
     rtt = float(m.group(1)) / 1000 if m else 1e-4
     rtts.append(rtt)
-    mine = []
-    for ln in p.stdout.splitlines():
-        m = re.match(r'run W=(\d+) rc=(\d+) wall=([\d.]+)', ln)
-        if not m:
-            continue
-        W, rc = int(m.group(1)), int(m.group(2))
-        if rc != 0:
-            print('run W=%d failed (exit %d):' % (W, rc))
-            print(open(os.path.join(out, 'w%d.err' % W)).read()[-1500:])
-            return 1
-        f = parse_farm_log(open(os.path.join(out, 'w%d.err' % W)).read())
-        measured = f['done_s']
-        pred, parts = predict(vc, common, W, link_bps=worker_mbit * 1e6,
-                              coord_bps=coord_mbit * 1e6, rtt_s=rtt, threads=1, tile=32,
-                              shared_cores=cores, parts=True)
-        err = (pred - measured) / measured * 100
-        mine.append(dict(W=W, coord_mbit=coord_mbit, worker_mbit=worker_mbit, measured_s=measured,
-                         predicted_s=pred, error_pct=err, parts={k: round(v, 3) for k, v in parts.items()}))
-        print('%g:%g Mbit/s W=%d  measured %6.2f s  predicted %6.2f s  error %+5.1f %%   (%s)' % (
-            coord_mbit, worker_mbit, W, measured, pred, err,
-            ', '.join('%s %.2f' % kv for kv in parts.items() if kv[1] > 0.005)))
-    t1m = next((r['measured_s'] for r in mine if r['W'] == 1), None)
-    t1p = next((r['predicted_s'] for r in mine if r['W'] == 1), None)
-    for r in mine:
-        if t1m and t1p:
-            r['measured_eff'] = t1m / (r['W'] * r['measured_s'])
-            r['predicted_eff'] = t1p / (r['W'] * r['predicted_s'])
-    rows.extend(mine)
+    m = re.search(r'run W=(\d+) rc=(\d+) wall=([\d.]+)', p.stdout)
+    if not m or int(m.group(2)) != 0:
+        print('the run with %d workers failed: %s' % (W, p.stdout[-300:]))
+        path = os.path.join(out, 'w%d.err' % W)
+        if os.path.exists(path):
+            print(open(path).read()[-1500:])
+        return 1
+    f = parse_farm_log(open(os.path.join(out, 'w%d.err' % W)).read())
+    measured = f['done_s']
+    pred, parts = predict(vc, common, W, link_bps=worker_mbit * 1e6, coord_bps=coord_mbit * 1e6, rtt_s=rtt,
+                          threads=1, tile=32, shared=slowdown, parts=True)
+    err = (pred - measured) / measured * 100
+    rows.append(dict(W=W, coord_mbit=coord_mbit, worker_mbit=worker_mbit, measured_s=measured, predicted_s=pred,
+                     error_pct=err, slowdown=slowdown[W] if W > 1 else 1.0, loadavg=loadavg(), costs=vc,
+                     parts={k: round(v, 3) for k, v in parts.items()}))
+    print('%g:%g Mbit/s W=%d  measured %6.2f s  predicted %6.2f s  error %+5.1f %%   (slowdown x%.2f; %s)' % (
+        coord_mbit, worker_mbit, W, measured, pred, err, rows[-1]['slowdown'],
+        ', '.join('%s %.2f' % kv for kv in parts.items() if kv[1] > 0.005)))
+    sys.stdout.flush()
     return 0
+
+
+def s_efficiencies(rows):
+    """Measured and predicted efficiency of each run against the run with
+    one worker at the same links."""
+    for r in rows:
+        one = [q for q in rows if q['W'] == 1 and q['coord_mbit'] == r['coord_mbit']
+               and q['worker_mbit'] == r['worker_mbit']]
+        if one:
+            r['measured_eff'] = one[0]['measured_s'] / (r['W'] * r['measured_s'])
+            r['predicted_eff'] = one[0]['predicted_s'] / (r['W'] * r['predicted_s'])
 
 
 # ---------------------------------------------------------------- report
@@ -576,11 +589,11 @@ def cmd_report(costs, args):
         v = json.load(open(VALIDATION))
         out.append('### Measured: namespace hosts\n')
         out.append('%s, %s; links (tc tbf, both ways) coordinator:worker %s Mbit/s, round trip %s ms (ping), '
-                   '1-thread workers; this machine gave %.2f cores at the time (load average %s); %s.\n' % (
+                   '1-thread workers; load average %s at the end; %s.\n' % (
                        v['config']['scene'], ' '.join(['--size', '%dx%d' % tuple(v['config']['size'])] +
                                                       v['config']['opts']),
                        ' and '.join('%g:%g' % tuple(l) for l in v['links']),
-                       ', '.join('%.3f' % (x * 1000) for x in v['rtt_s']), v['cores_available'], v['loadavg'],
+                       ', '.join('%.3f' % (x * 1000) for x in v['rtt_s']), v['loadavg'],
                        v['when']))
         out.append('| links Mbit/s | workers | measured s | predicted s | error | measured E | predicted E | predicted parts (s) |')
         out.append('|---|---|---|---|---|---|---|---|')
