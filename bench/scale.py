@@ -27,17 +27,20 @@ links' bandwidth and latency:
 Efficiency E(W) = T(1) / (W T(W)), the same model and configuration at one
 worker. Defaults: a worker and the coordinator are each a machine like this
 one (its cores, its measured costs), a 10 Gbit/s link with a 0.1 ms round
-trip. Scenes: the Bitterli dining room (a pbrt-v4 interior) at 1280x720 and
-the Cornell box at 512x512.
+trip, tile 32. Scenes: the Bitterli dining room (a pbrt-v4 interior) at
+1280x720 at 64 spp ("interior") and 256 spp ("interior-hq"), its per-pixel
+cost measured at 160x90; the Cornell box at 512x512, measured at 128x128.
 
 --check validates the model on network-namespace hosts
 (tests/integration/scale_hosts.sh): a coordinator and 1..6 workers on this
 machine, every link a tbf token bucket so that the link, not the 2 cores,
-limits; the costs of that small configuration are measured first by separate
-local runs (not fitted to the namespace runs), the model predicts each run
-with this machine's cores shared by all "hosts", and the error is printed.
-It ends with "efficiency at 64 workers: E; model error on measured hosts: V %"
-(V: the mean absolute error over the runs). --quick: the ctest version.
+limits (two settings: the coordinator's link limits, or each worker's).
+Before each run the small configuration's costs and the slowdown of W
+threads at once are measured by separate local runs (never fitted to the
+namespace runs); the model predicts the run and the error is printed. It
+ends with "efficiency at 64 workers: E; model error on measured hosts: V %"
+(E: the headline configuration, HEADLINE below; V: the mean absolute error
+over the runs). --quick: the ctest version (1, 2, 4 workers, one setting).
 
 Standard library only. Plots are SVG written here (no matplotlib needed).
 """
