@@ -71,7 +71,7 @@ RESULT_BYTES_PER_PIXEL = 12
 DINING = '/work/shared/scenes/bitterli/dining-room/scene-v4.pbrt'
 SCENES = {
     'interior': dict(scene=os.path.join(ROOT, '..', 'shared', 'scenes', 'bitterli', 'dining-room', 'scene-v4.pbrt'),
-                     label='Bitterli dining room (pbrt-v4 interior), 1280x720',
+                     label='Bitterli dining room (pbrt-v4 interior), 1280x720, spp 64',
                      size=(1280, 720), measure_size=(160, 90),
                      opts=['--spp', '64', '--photons', '1000000', '--caustic-photons', '200000']),
     'interior-hq': dict(scene=os.path.join(ROOT, '..', 'shared', 'scenes', 'bitterli', 'dining-room', 'scene-v4.pbrt'),
