@@ -217,6 +217,12 @@ pf_vec3 pf_coated_base_albedo(const pf_material_t *m, float cos_o)
     return pf_scale(s_base_scale(m, k), PF_PI * k->b * s_base_dir(m, k, cos_o));
 }
 
+pf_vec3 pf_coated_kd(const pf_material_t *m, float cos_o, int with_coat)
+{
+    pf_vec3 kd = pf_coated_base_albedo(m, cos_o);
+    return with_coat ? pf_add(kd, pf_v3s(pf_coat_albedo(cos_o, m->alpha, m->ior))) : kd;
+}
+
 static pf_vec3 s_local(pf_vec3 w, pf_vec3 t, pf_vec3 b, pf_vec3 n)
 {
     return pf_v3(pf_dot(w, t), pf_dot(w, b), pf_dot(w, n));

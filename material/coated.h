@@ -58,6 +58,14 @@ pf_vec3 pf_coated_f(const pf_material_t *m, pf_vec3 n, pf_vec3 wo, pf_vec3 wi);
  * lookups' "kd"). */
 pf_vec3 pf_coated_base_albedo(const pf_material_t *m, float cos_o);
 
+/* The reflectance the renderer applies to irradiance at a coated surface
+ * seen from cos_o (radiance = kd E / pi, as for a diffuse kd): the base's
+ * directional albedo (exact for uniformly incident light; the falloff with
+ * the incident angle is averaged), plus, with with_coat (where a gather
+ * ray ends: it does not follow the coat), the coat's albedo A(cos_o), its
+ * reflection estimated as that of a uniform incident field. */
+pf_vec3 pf_coated_kd(const pf_material_t *m, float cos_o, int with_coat);
+
 /* The probability with which pf_coated_sample takes the coat lobe at wo:
  * A(wo) against the base's mean albedo. */
 float pf_coated_coat_prob(const pf_material_t *m, float cos_o);
