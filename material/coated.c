@@ -1,9 +1,10 @@
 /* coated.c: the coated diffuse material; see coated.h for the model.
  *
- * The rough coat's directional albedo A(cos, alpha, eta) is tabulated once
- * (pthread_once) on a grid of 33 cosines x 17 alphas x 17 indices (eta 1 to
- * 3), each entry the mean of the visible-normal sampling weight F G2 / G1
- * over a 24 x 24 stratified grid, and read by trilinear interpolation. The
+ * The rough coat's interface is tabulated on a grid of 33 cosines x 17
+ * alphas x 9 indices (eta 1 to 3; each index's slice built on first use):
+ * its reflection albedo A and transmitted fraction from outside and its
+ * reflection albedo from inside, each the mean visible-normal sampling
+ * weight over a 12 x 12 stratified grid, read by trilinear interpolation. The
  * per-material constants B (the mean of (1 - A) T over cosine-weighted
  * directions) and r (the base's light turned back by the coat) are
  * quadratures over that table; they are kept in a small per-thread cache
@@ -11,7 +12,7 @@
  * material and every thread computes the same bits. */
 #include "material/coated.h"
 
-#include <pthread.h>
+#include <sched.h>
 #include <string.h>
 
 #include "base/sampling.h"
@@ -28,9 +29,9 @@ enum { S_NMU = 33, S_NAL = 17, S_NETA = 9, S_GRID = 12, S_QUAD = 64 };
  * cosine. Each index's slice is built the first time it is read. */
 enum { S_A = 0, S_TIN = 1, S_RINT = 2 };
 static float s_table[S_NETA][3][S_NAL][S_NMU];
-static pthread_once_t s_once[S_NETA] = { PTHREAD_ONCE_INIT, PTHREAD_ONCE_INIT, PTHREAD_ONCE_INIT,
-                                         PTHREAD_ONCE_INIT, PTHREAD_ONCE_INIT, PTHREAD_ONCE_INIT,
-                                         PTHREAD_ONCE_INIT, PTHREAD_ONCE_INIT, PTHREAD_ONCE_INIT };
+/* Per slice: 0 not built, 1 being built, 2 built (the builder's writes
+ * published by the release store). */
+static int s_state[S_NETA];
 
 /* Single scattering off the rough interface from the side of wo's cosine
  * cos_o, eta the index beyond over the index here: the mean visible-normal
@@ -74,19 +75,21 @@ static void s_build_slice(int e)
     }
 }
 
-#define S_SLICE(e)                                                                                                     \
-    static void s_build_##e(void) { s_build_slice(e); }
-S_SLICE(0)
-S_SLICE(1)
-S_SLICE(2)
-S_SLICE(3)
-S_SLICE(4)
-S_SLICE(5)
-S_SLICE(6)
-S_SLICE(7)
-S_SLICE(8)
-static void (*const s_builders[S_NETA])(void) = { s_build_0, s_build_1, s_build_2, s_build_3, s_build_4,
-                                                   s_build_5, s_build_6, s_build_7, s_build_8 };
+/* Builds slice e once: the first thread to claim it builds, the others
+ * wait (a slice takes a few tens of milliseconds, once per process). */
+static void s_slice_ready(int e)
+{
+    if (__atomic_load_n(&s_state[e], __ATOMIC_ACQUIRE) == 2)
+        return;
+    int expect = 0;
+    if (__atomic_compare_exchange_n(&s_state[e], &expect, 1, 0, __ATOMIC_ACQ_REL, __ATOMIC_ACQUIRE)) {
+        s_build_slice(e);
+        __atomic_store_n(&s_state[e], 2, __ATOMIC_RELEASE);
+        return;
+    }
+    while (__atomic_load_n(&s_state[e], __ATOMIC_ACQUIRE) != 2)
+        sched_yield();
+}
 
 int pf_coated_smooth(const pf_material_t *m) { return m->alpha < PF_GGX_SMOOTH; }
 
@@ -109,7 +112,7 @@ static float s_lookup(int which, float mu, float alpha, float eta)
         float we = i ? te : 1.0f - te;
         if (we == 0.0f)
             continue;
-        pthread_once(&s_once[e0 + i], s_builders[e0 + i]);
+        s_slice_ready(e0 + i);
         for (int j = 0; j < 2; j++)
             for (int k = 0; k < 2; k++)
                 v += we * (j ? ta : 1.0f - ta) * (k ? tm : 1.0f - tm) * s_table[e0 + i][which][a0 + j][m0 + k];

@@ -23,8 +23,8 @@
  * BSDF, GGX interface included).
  *
  * Directions are unit vectors pointing away from the surface, n the unit
- * shading normal; pure functions, any thread (the albedo table is built
- * once, on first use, under pthread_once). */
+ * shading normal; pure functions, any thread (the albedo table's slice of an
+ * index is built once, on first use). */
 #ifndef PF_COATED_H
 #define PF_COATED_H
 
