@@ -181,13 +181,13 @@ static void s_compute(s_consts *k)
 /* The constants of m, from this thread's cache. */
 static const s_consts *s_get(const pf_material_t *m)
 {
-    static _Thread_local s_consts cache[8];
+    static _Thread_local s_consts cache[64];
     uint32_t bits[3];
     memcpy(&bits[0], &m->alpha, 4);
     memcpy(&bits[1], &m->ior, 4);
     memcpy(&bits[2], &m->thickness, 4);
     uint32_t h = (bits[0] * 0x9e3779b1u) ^ (bits[1] * 0x85ebca77u) ^ (bits[2] * 0xc2b2ae3du);
-    s_consts *k = &cache[(h >> 29) & 7];
+    s_consts *k = &cache[h >> 26];
     if (!k->valid || k->alpha != m->alpha || k->ior != m->ior || k->thickness != m->thickness) {
         k->alpha = m->alpha;
         k->ior = m->ior;
