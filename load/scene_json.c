@@ -209,7 +209,7 @@ static int s_conductor(s_ctx_t *c, const cJSON *m, pf_material_t *mat)
 
 /* A coated material's "roughness" (GGX alpha in [0, 1]) and "thickness"
  * (>= 0; 0, the default: a lossless coat); its "kd" and "ior" are read with
- * the other kinds'. */
+ * the other kinds'. Glass's "roughness" too (rough glass from 1e-3). */
 static int s_coated(s_ctx_t *c, const cJSON *m, pf_material_t *mat)
 {
     const char *what = "material";
@@ -223,7 +223,7 @@ static int s_coated(s_ctx_t *c, const cJSON *m, pf_material_t *mat)
         return rc;
     if (v && !(mat->thickness >= 0.0f))
         return S_FAIL_AT(c, v, "'thickness' in material must be >= 0 (got %g)", mat->thickness);
-    if (!(mat->ior >= 1.0f))
+    if (mat->type == PF_MAT_COATED && !(mat->ior >= 1.0f))
         return S_FAIL_AT(c, m, "a coated material's 'ior' must be >= 1 (got %g)", mat->ior);
     return PF_OK;
 }
@@ -256,7 +256,8 @@ static int s_material(s_ctx_t *c, const cJSON *m)
     const char *const *valid;
     static const char *const diffuse_keys[] = { "kd", "ks", "ns", "emission", NULL };
     static const char *const mirror_keys[] = { "ks", "emission", NULL };
-    static const char *const glass_keys[] = { "ks", "kt", "ior", "emission", NULL };
+    static const char *const glass_keys[] = { "ks", "kt", "ior", "roughness", "emission", NULL };
+    static const char *const thin_keys[] = { "ks", "kt", "ior", "emission", NULL };
     static const char *const conductor_keys[] = { "eta", "k", "reflectance", "roughness", "emission", NULL };
     static const char *const coated_keys[] = { "kd", "ior", "roughness", "thickness", "emission", NULL };
     if (strcmp(type, "diffuse") == 0) {
@@ -278,7 +279,7 @@ static int s_material(s_ctx_t *c, const cJSON *m)
         mat.type = PF_MAT_THIN_DIELECTRIC;
         mat.kd = pf_v3s(0.0f);
         mat.ks = pf_v3s(1.0f);
-        valid = glass_keys;
+        valid = thin_keys;
     } else if (strcmp(type, "conductor") == 0) {
         mat.type = PF_MAT_CONDUCTOR;
         mat.kd = pf_v3s(0.0f);
@@ -323,7 +324,7 @@ static int s_material(s_ctx_t *c, const cJSON *m)
     }
     if (mat.type == PF_MAT_CONDUCTOR && (rc = s_conductor(c, m, &mat)))
         return rc;
-    if (mat.type == PF_MAT_COATED && (rc = s_coated(c, m, &mat)))
+    if ((mat.type == PF_MAT_COATED || mat.type == PF_MAT_GLASS) && (rc = s_coated(c, m, &mat)))
         return rc;
     /* A diffuse surface reflects kd + ks in total; more than 1 would create
      * energy and break the photon tracer's Russian roulette. */

@@ -188,10 +188,11 @@ static int s_trace(const s_ctx *c, uint64_t seed, uint64_t index, uint64_t emitt
             /* Glass, solid or thin: reflected with probability f (Fresnel R,
              * or a thin sheet's R'), else transmitted; power is conserved
              * across the interface, so kt is not scaled by the indices. */
-            pf_dielectric_t g = pf_dielectric_at(m, ray.d, hit.ng, wi, ns);
+            pf_dielectric_t g = pf_mat_rough_glass(m) ? pf_dielectric_rough_at(m, ray.d, hit.ng, wi, ns, u1, u2)
+                                                      : pf_dielectric_at(m, ray.d, hit.ng, wi, ns);
             int reflect = u0 < g.f || !g.can_refract;
             wo = reflect ? g.wr : g.wt;
-            power = pf_mul(power, reflect ? m->ks : m->kt);
+            power = pf_mul(power, reflect ? g.kr : pf_scale(m->kt, g.gt));
         }
         if (!pf_is_finite3(power) || power.x < 0.0f || power.y < 0.0f || power.z < 0.0f)
             return 1;

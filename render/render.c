@@ -215,6 +215,16 @@ typedef struct s_gather_end {
     pf_vec3 nf, thr, kd;
 } s_gather_end;
 
+/* A glass hit's split (material/dielectric.h): rough glass draws its
+ * microfacet normal here, smooth glass draws nothing. */
+static pf_dielectric_t s_glass(s_state *st, const pf_material_t *m, pf_vec3 d, pf_vec3 ng, pf_vec3 wo, pf_vec3 ns)
+{
+    if (!pf_mat_rough_glass(m))
+        return pf_dielectric_at(m, d, ng, wo, ns);
+    float u1 = s_u(st), u2 = s_u(st);
+    return pf_dielectric_rough_at(m, d, ng, wo, ns, u1, u2);
+}
+
 /* Traces a final-gather ray to its end: mirrors and glass (solid or thin)
  * on the way are followed (one branch chosen by Fresnel); at the first
  * non-specular surface
@@ -263,10 +273,10 @@ static void s_gather_trace(s_state *st, pf_ray_t ray, s_gather_end *end)
                 return;
             thr = pf_mul(thr, w);
         } else {
-            pf_dielectric_t g = pf_dielectric_at(m, ray.d, h.ng, wo, ns);
+            pf_dielectric_t g = s_glass(st, m, ray.d, h.ng, wo, ns);
             int reflect = s_u(st) < g.f || !g.can_refract;
             wi = reflect ? g.wr : g.wt;
-            thr = pf_mul(thr, reflect ? m->ks : g.kt);
+            thr = pf_mul(thr, reflect ? g.kr : g.kt);
         }
         if (pf_is_black(thr)) {
             end->value = thr;
@@ -547,20 +557,19 @@ static pf_vec3 s_radiance(s_state *st, pf_ray_t ray, int depth, pf_vec3 thr, int
      * chosen by Fresnel deeper down. The refracted branch near the eye (or
      * the reflection alone under total internal reflection) goes on as the
      * primary path; s_primary_hit follows the same choice. */
-    pf_dielectric_t g = pf_dielectric_at(m, ray.d, h.ng, wo, ns);
+    pf_dielectric_t g = s_glass(st, m, ray.d, h.ng, wo, ns);
     float f = g.f;
-    pf_vec3 wt = g.wt, wr = g.wr, kt = g.kt;
+    pf_vec3 wt = g.wt, wr = g.wr, kt = g.kt, ks = g.kr;
     if (!g.can_refract)
-        return pf_add(L, pf_mul(m->ks, s_radiance(st, pf_spawn_ray(&h, wr), depth + 1, pf_mul(thr, m->ks), 1,
-                                                  primary)));
+        return pf_add(L, pf_mul(ks, s_radiance(st, pf_spawn_ray(&h, wr), depth + 1, pf_mul(thr, ks), 1, primary)));
     if (depth < S_GLASS_SPLIT_DEPTH) {
-        pf_vec3 kr = pf_scale(m->ks, f), ktt = pf_scale(kt, 1.0f - f);
+        pf_vec3 kr = pf_scale(ks, f), ktt = pf_scale(kt, 1.0f - f);
         pf_vec3 lr = s_radiance(st, pf_spawn_ray(&h, wr), depth + 1, pf_mul(thr, kr), 1, 0);
         pf_vec3 lt = s_radiance(st, pf_spawn_ray(&h, wt), depth + 1, pf_mul(thr, ktt), 1, primary);
         return pf_add(L, pf_add(pf_mul(kr, lr), pf_mul(ktt, lt)));
     }
     if (s_u(st) < f)
-        return pf_add(L, pf_mul(m->ks, s_radiance(st, pf_spawn_ray(&h, wr), depth + 1, pf_mul(thr, m->ks), 1, 0)));
+        return pf_add(L, pf_mul(ks, s_radiance(st, pf_spawn_ray(&h, wr), depth + 1, pf_mul(thr, ks), 1, 0)));
     return pf_add(L, pf_mul(kt, s_radiance(st, pf_spawn_ray(&h, wt), depth + 1, pf_mul(thr, kt), 1, 0)));
 }
 
@@ -681,7 +690,7 @@ static const pf_material_t *s_primary_hit(const pf_render_ctx_t *c, pf_ray_t ray
             return pf_mat_nonspecular(m) && !pf_is_black(m->kd) ? m : NULL;
         if (depth >= c->settings.max_depth)
             return NULL;
-        if (pf_mat_rough(m))
+        if (pf_mat_rough(m) || pf_mat_rough_glass(m))
             return NULL; /* a random branch from here on */
         pf_vec3 wi = pf_reflect(wo, *ns);
         if (pf_mat_dielectric(m)) {

@@ -298,6 +298,8 @@ int pf_scene_finalize(pf_scene_t *self, pf_error_t *err)
         if (m->type == PF_MAT_CONDUCTOR && !(m->alpha >= 0.0f && m->alpha <= 1.0f))
             return pf_error_set(err, PF_EPARSE, file, 0, "material '%s': conductor roughness must be in [0, 1]",
                                 m->name);
+        if (m->type == PF_MAT_GLASS && !(m->alpha >= 0.0f && m->alpha <= 1.0f))
+            return pf_error_set(err, PF_EPARSE, file, 0, "material '%s': glass roughness must be in [0, 1]", m->name);
         if (m->type == PF_MAT_COATED &&
             !(m->ior >= 1.0f && m->alpha >= 0.0f && m->alpha <= 1.0f && m->thickness >= 0.0f &&
               m->kd.x >= 0.0f && m->kd.y >= 0.0f && m->kd.z >= 0.0f && pf_maxc(m->kd) <= 1.0f))

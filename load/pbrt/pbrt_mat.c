@@ -16,8 +16,8 @@
  *                       roughness (below); anisotropic u != v: their mean,
  *                       warned
  *   coatedconductor     MIRROR of its conductor; warned
- *   dielectric          GLASS ior = eta (a named glass: its index); rough
- *                       ones warned
+ *   dielectric          GLASS ior = eta (a named glass: its index), alpha
+ *                       from the roughness (rough glass from 1e-3)
  *   thindielectric      THIN_DIELECTRIC ior = eta
  *   diffusetransmission DIFFUSE kd = reflectance, warned
  *   mix                 the first of its two materials, warned
@@ -137,8 +137,6 @@ static void s_what(const pf_pbrt_t *c, const pf_pbrt_mat_t *m, char *out, size_t
         snprintf(out, cap, "Material \"%s\"", m->type);
 }
 
-/* pbrt's alpha from roughness, uroughness, vroughness and remaproughness:
- * the larger of the two. */
 /* The two alphas of "roughness" / "uroughness" / "vroughness" (remapped by
  * "remaproughness", default true: alpha = sqrt(roughness)). */
 static int s_alpha_uv(pf_pbrt_t *c, pf_pbrt_params_t *ps, const char *prefix, const char *what, double *au,
@@ -164,15 +162,6 @@ static int s_alpha_uv(pf_pbrt_t *c, pf_pbrt_params_t *ps, const char *prefix, co
     *au = remap ? sqrt(u) : u;
     *av = remap ? sqrt(v) : v;
     return PF_OK;
-}
-
-/* The larger alpha (for the approximations that only ask how rough). */
-static int s_alpha(pf_pbrt_t *c, pf_pbrt_params_t *ps, const char *prefix, const char *what, double *alpha)
-{
-    double u, v;
-    int rc = s_alpha_uv(c, ps, prefix, what, &u, &v);
-    *alpha = fmax(u, v);
-    return rc;
 }
 
 /* Index of refraction from "eta" (float, spectrum or float texture). */
@@ -337,18 +326,20 @@ static int s_conductor(pf_pbrt_t *c, pf_pbrt_mat_t *m, const char *what, int coa
 
 static int s_dielectric(pf_pbrt_t *c, pf_pbrt_mat_t *m, const char *what, int thin)
 {
-    double eta, alpha = 0.0;
+    double eta, au = 0.0, av = 0.0;
     int rc = s_eta(c, &m->params, "eta", what, &eta);
     if (rc == PF_OK && !thin)
-        rc = s_alpha(c, &m->params, "", what, &alpha);
+        rc = s_alpha_uv(c, &m->params, "", what, &au, &av);
     if (rc)
         return rc;
     m->m.type = thin ? PF_MAT_THIN_DIELECTRIC : PF_MAT_GLASS;
     m->m.ks = m->m.kt = pf_v3s(1.0f);
     m->m.ior = (float)eta;
-    if (alpha >= 1e-3)
-        return pf_pbrt_warn(c, m->loc, "rough dielectric (rendered as smooth glass until GGX lands)",
-                            "%s: alpha %.3g; rendered as smooth glass of index %g", what, alpha, eta);
+    m->m.alpha = (float)fmin(0.5 * (au + av), 1.0); /* rough glass from 1e-3 (material/dielectric.h) */
+    if (au != av && (rc = pf_pbrt_warn(c, m->loc, "anisotropic roughness (isotropic mean used)",
+                                       "%s: alphas %.3g and %.3g; rendered with their mean %.3g", what, au, av,
+                                       0.5 * (au + av))))
+        return rc;
     return PF_OK;
 }
 
