@@ -9,6 +9,9 @@
  * mirror tinted by its Fresnel), with Russian roulette on the sampled weight
  * f cos / pdf; no photon is stored there, and for the caustic map they count
  * as specular (caustic paths are L (S|C)+ D, C a conductor, rough or not).
+ * Coated surfaces store photons and scatter them by their BSDF (diffuse
+ * for the caustic map); rough glass splits about a sampled microfacet
+ * normal (specular for the caustic map, as rough conductors).
  * Caustic photons: a separate emission aimed at the bounding spheres of the
  * mirror, glass and conductor geometry (pf_lights_emit_targeted: the flux divides by the
  * cone-mixture pdf, so the estimate stays unbiased while no photon is spent

@@ -55,6 +55,11 @@
  *                                      from there (L S+ C E as emitted, paths
  *                                      with a vertex beyond by the next x)
  *
+ * A coated x (material/coated.h) is D for its base (scaled by its
+ * directional albedo) and adds its coat lobe as the conductor row does
+ * (smooth: a mirror, as S); gather rays end at it as at D. Rough glass is
+ * S taken as a random branch (a microfacet normal drawn per hit).
+ *
  * Distant and infinite lights (the sun and a constant sky) fit the same
  * rows. The sun is a delta: only light sampling (direct) and photons reach
  * it, never a ray. The sky is an emitter every escaping ray reaches, as if
