@@ -12,7 +12,10 @@
  * sampled by its visible normals, reflection or refraction chosen by
  * Fresnel, Lambertian base, internal reflections at the rough interface,
  * exp(-thickness / |cos|) per crossing): the directional albedo at 4
- * angles x 3 roughnesses x 3 albedos, thickness 0.01 (pbrt's default).
+ * angles x 3 roughnesses x 3 albedos, thickness 0.01 (pbrt's default),
+ * within 3 % plus 4 standard errors. Measured with 600000 walks each (ten
+ * times this test's): worst 1.41 %; rough coats 0.3 to 1.4 % high, smooth
+ * within 1.2 %.
  * Randomness: pf_rng_make(seed, PF_STREAM_TEST, i, 0). */
 #include <math.h>
 #include <stdint.h>
