@@ -428,8 +428,8 @@ int pf_specular_targets(const pf_scene_t *scene, pf_target_t **out)
         const pf_mesh_t *mesh = &scene->meshes[m];
         pf_vec3 lo = pf_v3s(FLT_MAX), hi = pf_v3s(-FLT_MAX);
         for (size_t i = 0; i < mesh->ntris; i++) {
-            if (scene->mats[mesh->mat[i]].type == PF_MAT_DIFFUSE)
-                continue;
+            if (scene->mats[mesh->mat[i]].type == PF_MAT_DIFFUSE || scene->mats[mesh->mat[i]].type == PF_MAT_COATED)
+                continue; /* a coated surface is diffuse for the caustic map (photon/trace.c) */
             for (int k = 0; k < 3; k++) {
                 lo = pf_vmin(lo, mesh->pos[mesh->idx[3 * i + k]]);
                 hi = pf_vmax(hi, mesh->pos[mesh->idx[3 * i + k]]);
@@ -443,7 +443,7 @@ int pf_specular_targets(const pf_scene_t *scene, pf_target_t **out)
     }
     for (size_t i = 0; i < scene->nspheres; i++) {
         const pf_sphere_t *sp = &scene->spheres[i];
-        if (scene->mats[sp->mat].type != PF_MAT_DIFFUSE)
+        if (scene->mats[sp->mat].type != PF_MAT_DIFFUSE && scene->mats[sp->mat].type != PF_MAT_COATED)
             t[n++] = (pf_target_t){ sp->center, sp->radius * 1.001f };
     }
     if (n == 0) {

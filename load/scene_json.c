@@ -211,10 +211,31 @@ static int s_conductor(s_ctx_t *c, const cJSON *m, pf_material_t *mat)
     return PF_OK;
 }
 
+/* A coated material's "roughness" (GGX alpha in [0, 1]) and "thickness"
+ * (>= 0; 0, the default: a lossless coat); its "kd" and "ior" are read with
+ * the other kinds'. Glass's "roughness" too (rough glass from 1e-3). */
+static int s_coated(s_ctx_t *c, const cJSON *m, pf_material_t *mat)
+{
+    const char *what = "material";
+    const cJSON *v;
+    int rc;
+    if ((v = pf_json_get(m, "roughness")) && (rc = pf_json_float(c, v, "roughness", what, &mat->alpha)))
+        return rc;
+    if (v && !(mat->alpha >= 0.0f && mat->alpha <= 1.0f))
+        return S_FAIL_AT(c, v, "'roughness' in material must lie in [0, 1] (got %g)", mat->alpha);
+    if ((v = pf_json_get(m, "thickness")) && (rc = pf_json_float(c, v, "thickness", what, &mat->thickness)))
+        return rc;
+    if (v && !(mat->thickness >= 0.0f))
+        return S_FAIL_AT(c, v, "'thickness' in material must be >= 0 (got %g)", mat->thickness);
+    if (mat->type == PF_MAT_COATED && !(mat->ior >= 1.0f))
+        return S_FAIL_AT(c, m, "a coated material's 'ior' must be >= 1 (got %g)", mat->ior);
+    return PF_OK;
+}
+
 static int s_material(s_ctx_t *c, const cJSON *m)
 {
     static const char *const keys[] = { "name", "type", "kd", "ks", "ns", "kt", "ior", "emission",
-                                        "eta", "k", "reflectance", "roughness", NULL };
+                                        "eta", "k", "reflectance", "roughness", "thickness", NULL };
     const char *what = "material";
     int rc = pf_json_check_object(c, m, what, keys);
     const cJSON *vname = NULL, *v;
@@ -239,8 +260,10 @@ static int s_material(s_ctx_t *c, const cJSON *m)
     const char *const *valid;
     static const char *const diffuse_keys[] = { "kd", "ks", "ns", "emission", NULL };
     static const char *const mirror_keys[] = { "ks", "emission", NULL };
-    static const char *const glass_keys[] = { "ks", "kt", "ior", "emission", NULL };
+    static const char *const glass_keys[] = { "ks", "kt", "ior", "roughness", "emission", NULL };
+    static const char *const thin_keys[] = { "ks", "kt", "ior", "emission", NULL };
     static const char *const conductor_keys[] = { "eta", "k", "reflectance", "roughness", "emission", NULL };
+    static const char *const coated_keys[] = { "kd", "ior", "roughness", "thickness", "emission", NULL };
     if (strcmp(type, "diffuse") == 0) {
         mat.type = PF_MAT_DIFFUSE;
         valid = diffuse_keys;
@@ -260,14 +283,18 @@ static int s_material(s_ctx_t *c, const cJSON *m)
         mat.type = PF_MAT_THIN_DIELECTRIC;
         mat.kd = pf_v3s(0.0f);
         mat.ks = pf_v3s(1.0f);
-        valid = glass_keys;
+        valid = thin_keys;
     } else if (strcmp(type, "conductor") == 0) {
         mat.type = PF_MAT_CONDUCTOR;
         mat.kd = pf_v3s(0.0f);
         valid = conductor_keys;
+    } else if (strcmp(type, "coated") == 0) {
+        mat.type = PF_MAT_COATED;
+        valid = coated_keys;
     } else {
         return S_FAIL_AT(c, vtype,
-                         "unknown material type '%.64s' (expected diffuse, mirror, glass, thindielectric or conductor)",
+                         "unknown material type '%.64s' (expected diffuse, mirror, glass, thindielectric, conductor "
+                         "or coated)",
                          type);
     }
     for (const cJSON *k = m->child; k; k = k->next) {
@@ -300,6 +327,8 @@ static int s_material(s_ctx_t *c, const cJSON *m)
             return S_FAIL_AT(c, v, "'ior' in material must be > 0 (got %g)", mat.ior);
     }
     if (mat.type == PF_MAT_CONDUCTOR && (rc = s_conductor(c, m, &mat)))
+        return rc;
+    if ((mat.type == PF_MAT_COATED || mat.type == PF_MAT_GLASS) && (rc = s_coated(c, m, &mat)))
         return rc;
     /* A diffuse surface reflects kd + ks in total; more than 1 would create
      * energy and break the photon tracer's Russian roulette. */

@@ -32,13 +32,33 @@ typedef struct pf_dielectric {
     pf_vec3 wt;      /* the transmitted direction (refracted; for a thin sheet -wo, unbent) */
     pf_vec3 kt;      /* radiance tint of the transmitted branch: kt (eta_i / eta_t)^2 for glass,
                       * kt for a thin sheet (its two crossings cancel); photons carry power,
-                      * so they take the material's kt unscaled */
+                      * so they take the material's kt unscaled (times gt) */
+    pf_vec3 kr;      /* tint of the reflected branch: ks (rough glass: ks gr) */
+    float gr, gt;    /* rough glass: the branches' sampling weights G2 / G1 (0: that branch leaves on
+                      * the wrong side of the surface; kr and kt include them); 1 when smooth */
 } pf_dielectric_t;
+
+/* Glass rough enough for microfacets (GGX alpha >= 1e-3; pbrt-v4's rough
+ * dielectric). */
+static inline int pf_mat_rough_glass(const pf_material_t *m)
+{
+    return m->type == PF_MAT_GLASS && m->alpha >= 1e-3f;
+}
 
 /* The split of a dielectric material m (pf_mat_dielectric) hit by a ray of
  * direction d at geometric normal ng; wo = -d, ns the shading normal on wo's
  * side. Glass is entered when d runs against ng (the winding tells inside
  * from outside); a thin sheet has no inside. */
 pf_dielectric_t pf_dielectric_at(const pf_material_t *m, pf_vec3 d, pf_vec3 ng, pf_vec3 wo, pf_vec3 ns);
+
+/* The split of rough glass (pf_mat_rough_glass) as one sample of pbrt-v4's
+ * rough DielectricBxDF: a microfacet normal wm drawn from the visible
+ * normals of wo (u1, u2; ggx.h), then pf_dielectric_at about wm: f is the
+ * Fresnel reflectance at wo.wm, wr and wt are mirrored and refracted about
+ * wm, and the single-scattering weights G2 / G1 of each branch are in gr
+ * and gt (and kr, kt). A path that takes the reflected branch with
+ * probability f carries kr, the refracted one kt: f cos / pdf of the BSDF. */
+pf_dielectric_t pf_dielectric_rough_at(const pf_material_t *m, pf_vec3 d, pf_vec3 ng, pf_vec3 wo, pf_vec3 ns, float u1,
+                                       float u2);
 
 #endif

@@ -9,6 +9,9 @@
  * mirror tinted by its Fresnel), with Russian roulette on the sampled weight
  * f cos / pdf; no photon is stored there, and for the caustic map they count
  * as specular (caustic paths are L (S|C)+ D, C a conductor, rough or not).
+ * Coated surfaces store photons and scatter them by their BSDF (diffuse
+ * for the caustic map); rough glass splits about a sampled microfacet
+ * normal (specular for the caustic map, as rough conductors).
  * Caustic photons: a separate emission aimed at the bounding spheres of the
  * mirror, glass and conductor geometry (pf_lights_emit_targeted: the flux divides by the
  * cone-mixture pdf, so the estimate stays unbiased while no photon is spent
@@ -33,6 +36,7 @@
 #include "base/reserve.h"
 #include "base/rng.h"
 #include "material/bsdf.h"
+#include "material/coated.h"
 #include "material/dielectric.h"
 #include "material/ggx.h"
 #include "photon/irradiance.h"
@@ -85,6 +89,28 @@ static int s_conductor(const pf_material_t *m, pf_vec3 nf, pf_vec3 ns, pf_vec3 w
     return 1;
 }
 
+/* A photon off a coated surface (stored there as at a diffuse one): its
+ * BSDF sampled (coat lobe or base, material/coated.h), then Russian
+ * roulette on the weight f cos / pdf. A coated surface counts as diffuse
+ * for the caustic map, whatever lobe reflected the photon: the camera's
+ * gather rays end there (render.c) and estimate the coat's reflection from
+ * the irradiance, so its caustics (L C D) are the indirect term's. 0 when
+ * the photon ends here. */
+static int s_coated(const pf_material_t *m, pf_vec3 nf, pf_vec3 ns, pf_vec3 wi, float u0, float u1, float u2,
+                    float u3, pf_vec3 *wo, pf_vec3 *power)
+{
+    pf_vec3 w;
+    float pdf;
+    int lobe;
+    if (!pf_coated_sample(m, ns, wi, u0, u1, u2, wo, &w, &pdf, &lobe) || pf_dot(*wo, nf) <= 0.0f)
+        return 0;
+    float p = fminf(1.0f, pf_maxc(w));
+    if (!(p > 0.0f) || u3 >= p)
+        return 0;
+    *power = pf_mul(*power, pf_scale(w, 1.0f / p));
+    return 1;
+}
+
 /* Traces photon `index` of the map (caustic or global) into buf. Returns the
  * number of photons rejected for bad power (0 or 1), or PF_ENOMEM. */
 static int s_trace(const s_ctx *c, uint64_t seed, uint64_t index, uint64_t emitted, int caustic, s_buf *buf)
@@ -115,7 +141,7 @@ static int s_trace(const s_ctx *c, uint64_t seed, uint64_t index, uint64_t emitt
         pf_vec3 ns = pf_dot(hit.ng, nf) > 0.0f ? hit.ns : pf_neg(hit.ns);
         pf_vec3 wo;
         float u0 = pf_rng_float(&rng), u1 = pf_rng_float(&rng), u2 = pf_rng_float(&rng);
-        if (m->type == PF_MAT_DIFFUSE) {
+        if (m->type == PF_MAT_DIFFUSE || m->type == PF_MAT_COATED) {
             if (!pf_mat_nonspecular(m))
                 return 0;
             if (!caustic || (bounce > 0 && specular_only)) {
@@ -132,7 +158,10 @@ static int s_trace(const s_ctx *c, uint64_t seed, uint64_t index, uint64_t emitt
                 pd /= sum;
                 ps /= sum;
             }
-            if (u0 < pd) {
+            if (m->type == PF_MAT_COATED) {
+                if (!s_coated(m, nf, ns, wi, u0, u1, u2, pf_rng_float(&rng), &wo, &power))
+                    return 0;
+            } else if (u0 < pd) {
                 wo = pf_to_world(pf_sample_cosine(u1, u2), ns);
                 power = pf_mul(power, pf_scale(m->kd, 1.0f / pd));
             } else if (u0 < pd + ps) {
@@ -162,10 +191,11 @@ static int s_trace(const s_ctx *c, uint64_t seed, uint64_t index, uint64_t emitt
             /* Glass, solid or thin: reflected with probability f (Fresnel R,
              * or a thin sheet's R'), else transmitted; power is conserved
              * across the interface, so kt is not scaled by the indices. */
-            pf_dielectric_t g = pf_dielectric_at(m, ray.d, hit.ng, wi, ns);
+            pf_dielectric_t g = pf_mat_rough_glass(m) ? pf_dielectric_rough_at(m, ray.d, hit.ng, wi, ns, u1, u2)
+                                                      : pf_dielectric_at(m, ray.d, hit.ng, wi, ns);
             int reflect = u0 < g.f || !g.can_refract;
             wo = reflect ? g.wr : g.wt;
-            power = pf_mul(power, reflect ? m->ks : m->kt);
+            power = pf_mul(power, reflect ? g.kr : pf_scale(m->kt, g.gt));
         }
         if (!pf_is_finite3(power) || power.x < 0.0f || power.y < 0.0f || power.z < 0.0f)
             return 1;

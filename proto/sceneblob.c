@@ -9,8 +9,9 @@
  *   u8 has_camera, vec3 pos, vec3 look_at, vec3 up, f32 vfov_deg,
  *     u8 fov_shorter, u8 left_handed, f32 lens_radius, f32 focal_distance
  *   u32 nmats,    nmats x   { str name, u8 type, vec3 kd, vec3 ks, f32 ns, vec3 kt, f32 ior, vec3 le,
- *                             vec3 eta, vec3 k, f32 alpha }   (version 4: eta, k, alpha;
- *                             version 5: type 4, the thin dielectric)
+ *                             vec3 eta, vec3 k, f32 alpha, f32 thickness }   (version 4: eta, k, alpha;
+ *                             version 5: type 4, the thin dielectric; version 7: type 5, the
+ *                             coated diffuse, and thickness)
  *   u32 nmeshes,  nmeshes x { str name, u64 nverts, u64 ntris, u8 has_normals,
  *                             nverts x vec3 pos, (has_normals) nverts x vec3 nrm,
  *                             ntris x 3 u32 idx, ntris x u32 mat }
@@ -40,7 +41,7 @@
 #define S_WHERE "scene blob"
 
 /* The smallest encoded size of each repeated item, for the count checks. */
-#define S_MIN_MATERIAL (2 + 1 + 21 * 4)
+#define S_MIN_MATERIAL (2 + 1 + 22 * 4)
 #define S_MIN_MESH (2 + 8 + 8 + 1)
 #define S_VERTEX 12
 #define S_TRIANGLE 16
@@ -106,6 +107,7 @@ int pf_sceneblob_write(const pf_scene_t *scene, pf_buf_t *out)
         W(s_wr_vec3(out, m->eta));
         W(s_wr_vec3(out, m->k));
         W(pf_wr_f32(out, m->alpha));
+        W(pf_wr_f32(out, m->thickness));
     }
 
     W(pf_wr_u32(out, (uint32_t)scene->nmeshes));
@@ -308,6 +310,7 @@ static void s_read_materials(s_in_t *in, pf_scene_t *scene)
         m.eta = s_vec3(in, what, "eta");
         m.k = s_vec3(in, what, "k");
         m.alpha = s_f32(in, what, "alpha");
+        m.thickness = s_f32(in, what, "thickness");
         if (!in->status && m.type == PF_MAT_CONDUCTOR &&
             !(m.eta.x > 0.0f && m.eta.y > 0.0f && m.eta.z > 0.0f && m.k.x >= 0.0f && m.k.y >= 0.0f &&
               m.k.z >= 0.0f && m.alpha >= 0.0f && m.alpha <= 1.0f))

@@ -58,6 +58,11 @@
  *                                      from there (L S+ C E as emitted, paths
  *                                      with a vertex beyond by the next x)
  *
+ * A coated x (material/coated.h) is D for its base (scaled by its
+ * directional albedo) and adds its coat lobe as the conductor row does
+ * (smooth: a mirror, as S); gather rays end at it as at D. Rough glass is
+ * S taken as a random branch (a microfacet normal drawn per hit).
+ *
  * Distant and infinite lights (the sun and a constant sky) fit the same
  * rows. The sun is a delta: only light sampling (direct) and photons reach
  * it, never a ray. The sky is an emitter every escaping ray reaches, as if
@@ -89,6 +94,7 @@
 #include "base/log.h"
 #include "base/rng.h"
 #include "material/bsdf.h"
+#include "material/coated.h"
 #include "material/dielectric.h"
 #include "material/ggx.h"
 #include "photon/irrtex.h"
@@ -173,8 +179,13 @@ static int s_visible(const pf_accel_t *accel, const pf_hit_t *h, pf_vec3 wi, flo
     return len <= slack || !pf_accel_occluded(accel, &r, len - slack);
 }
 
-/* Direct light at a non-specular hit: light_samples shadow rays. */
-static pf_vec3 s_direct(s_state *st, const pf_hit_t *h, const pf_material_t *m, pf_vec3 nf, pf_vec3 ns, pf_vec3 wo)
+static float s_power(float na, float a, float nb, float b);
+
+/* Direct light at a non-specular hit: light_samples shadow rays. A rough
+ * coat's lobe is weighted by MIS against its BSDF ray (s_coat) when
+ * `recurse` says that ray is traced; the base is light sampling's alone. */
+static pf_vec3 s_direct(s_state *st, const pf_hit_t *h, const pf_material_t *m, pf_vec3 nf, pf_vec3 ns, pf_vec3 wo,
+                        int recurse)
 {
     const pf_render_ctx_t *c = st->ctx;
     int n = c->settings.light_samples > 0 ? c->settings.light_samples : 1;
@@ -188,6 +199,11 @@ static pf_vec3 s_direct(s_state *st, const pf_hit_t *h, const pf_material_t *m, 
         if (cos_x <= 0.0f || pf_dot(lc.wi, nf) <= 0.0f)
             continue;
         pf_vec3 f = pf_brdf_eval(m, ns, lc.wi, wo);
+        if (pf_mat_coated(m)) {
+            pf_coated_f_t cf = pf_coated_eval(m, ns, wo, lc.wi);
+            float w = recurse && lc.pdf > 0.0f ? s_power((float)n, lc.pdf, 1.0f, cf.coat_pdf) : 1.0f;
+            f = pf_add(cf.base, pf_v3s(cf.coat * w));
+        }
         if (pf_is_black(f) || !s_visible(c->accel, h, lc.wi, lc.dist))
             continue;
         sum = pf_add(sum, pf_scale(pf_mul(f, lc.weight), cos_x));
@@ -207,6 +223,16 @@ typedef struct s_gather_end {
     pf_hit_t h;
     pf_vec3 nf, thr, kd;
 } s_gather_end;
+
+/* A glass hit's split (material/dielectric.h): rough glass draws its
+ * microfacet normal here, smooth glass draws nothing. */
+static pf_dielectric_t s_glass(s_state *st, const pf_material_t *m, pf_vec3 d, pf_vec3 ng, pf_vec3 wo, pf_vec3 ns)
+{
+    if (!pf_mat_rough_glass(m))
+        return pf_dielectric_at(m, d, ng, wo, ns);
+    float u1 = s_u(st), u2 = s_u(st);
+    return pf_dielectric_rough_at(m, d, ng, wo, ns, u1, u2);
+}
 
 /* Traces a final-gather ray to its end: mirrors and glass (solid or thin)
  * on the way are followed (one branch chosen by Fresnel); at the first
@@ -228,7 +254,7 @@ static void s_gather_trace(s_state *st, pf_ray_t ray, s_gather_end *end)
         pf_vec3 wo = pf_neg(ray.d);
         pf_vec3 nf = pf_face_forward(h.ng, wo);
         pf_vec3 ns = pf_dot(h.ng, nf) > 0.0f ? h.ns : pf_neg(h.ns);
-        if (m->type == PF_MAT_DIFFUSE) {
+        if (m->type == PF_MAT_DIFFUSE || pf_mat_coated(m)) {
             if (!pf_mat_nonspecular(m))
                 return;
             if (pf_mat_glossy(m)) {
@@ -242,7 +268,7 @@ static void s_gather_trace(s_state *st, pf_ray_t ray, s_gather_end *end)
             end->h = h;
             end->nf = nf;
             end->thr = thr;
-            end->kd = m->kd;
+            end->kd = pf_mat_coated(m) ? pf_coated_kd(m, pf_dot(wo, ns), 1) : m->kd;
             return;
         }
         pf_vec3 wi;
@@ -256,10 +282,10 @@ static void s_gather_trace(s_state *st, pf_ray_t ray, s_gather_end *end)
                 return;
             thr = pf_mul(thr, w);
         } else {
-            pf_dielectric_t g = pf_dielectric_at(m, ray.d, h.ng, wo, ns);
+            pf_dielectric_t g = s_glass(st, m, ray.d, h.ng, wo, ns);
             int reflect = s_u(st) < g.f || !g.can_refract;
             wi = reflect ? g.wr : g.wt;
-            thr = pf_mul(thr, reflect ? m->ks : g.kt);
+            thr = pf_mul(thr, reflect ? g.kr : g.kt);
         }
         if (pf_is_black(thr)) {
             end->value = thr;
@@ -412,6 +438,33 @@ static pf_vec3 s_rough(s_state *st, const pf_hit_t *h, const pf_material_t *m, p
     return pf_add(L, pf_mul(wgt, li));
 }
 
+/* The coat lobe of a coated x: its one recursive ray. A rough coat's is
+ * sampled from the visible normals, and the emitter it hits directly
+ * counts with its MIS weight against s_direct's light samples (count_le 2);
+ * a smooth coat's is the mirror, which light sampling never sees, so what
+ * it meets counts whole (count_le 1, as a mirror's). The base is x's
+ * direct light, caustics and final gather (scaled by pf_coated_kd). */
+static pf_vec3 s_coat(s_state *st, const pf_hit_t *h, const pf_material_t *m, pf_vec3 nf, pf_vec3 ns, pf_vec3 wo,
+                      int depth, pf_vec3 thr)
+{
+    const pf_render_ctx_t *c = st->ctx;
+    pf_vec3 wi;
+    float w, pdf, u1 = s_u(st), u2 = s_u(st);
+    if (depth >= c->settings.max_depth || !pf_coated_sample_coat(m, ns, wo, u1, u2, &wi, &w, &pdf) ||
+        pf_dot(wi, nf) <= 0.0f || !(w > 0.0f))
+        return pf_v3s(0.0f);
+    int count_le = 1;
+    if (pdf > 0.0f) {
+        st->mis_x = h->p;
+        st->mis_n = ns;
+        st->mis_pdf = pdf;
+        st->mis_nl = c->settings.light_samples > 0 ? c->settings.light_samples : 1;
+        count_le = 2;
+    }
+    pf_vec3 wgt = pf_v3s(w);
+    return pf_mul(wgt, s_radiance(st, pf_spawn_ray(h, wi), depth + 1, pf_mul(thr, wgt), count_le, 0));
+}
+
 /* The radiance an emitter hit at h along d sends back, as count_le (1 or 2)
  * counts it (see s_radiance). */
 static pf_vec3 s_emitted(const s_state *st, const pf_hit_t *h, const pf_material_t *m, pf_vec3 d, int count_le)
@@ -460,32 +513,35 @@ static pf_vec3 s_radiance(s_state *st, pf_ray_t ray, int depth, pf_vec3 thr, int
     if (pf_mat_rough(m))
         return pf_add(L, s_rough(st, &h, m, nf, ns, wo, depth, thr));
 
-    if (m->type == PF_MAT_DIFFUSE) {
+    if (m->type == PF_MAT_DIFFUSE || pf_mat_coated(m)) {
         if (!pf_mat_nonspecular(m))
             return L;
+        pf_vec3 kd = pf_mat_coated(m) ? pf_coated_kd(m, pf_dot(wo, ns), 0) : m->kd;
         if (c->terms & PF_TERM_PHOTONMAP) {
             /* The global map's own estimate (the debugging view), not the
              * precomputed points, which a scene without indirect light lacks. */
             pf_vec3 e = pf_pm_irradiance(c->maps->global, h.p, nf, c->settings.global_k, c->maps->global_r2,
                                          &st->scratch, NULL);
-            return pf_add(L, pf_scale(pf_mul(m->kd, e), PF_INV_PI));
+            return pf_add(L, pf_scale(pf_mul(kd, e), PF_INV_PI));
         }
         if (c->terms & PF_TERM_DIRECT)
-            L = pf_add(L, s_direct(st, &h, m, nf, ns, wo));
-        if (!pf_is_black(m->kd)) {
+            L = pf_add(L, s_direct(st, &h, m, nf, ns, wo, depth < c->settings.max_depth));
+        if (!pf_is_black(kd)) {
             if (c->terms & PF_TERM_CAUSTIC) {
                 pf_vec3 e = s_caustic(st, h.p, nf);
-                L = pf_add(L, pf_scale(pf_mul(m->kd, e), PF_INV_PI));
+                L = pf_add(L, pf_scale(pf_mul(kd, e), PF_INV_PI));
             }
             if (c->terms & PF_TERM_INDIRECT) {
                 float w = fminf(1.0f, pf_maxc(thr));
                 int n = (int)ceilf((float)c->settings.gather * w);
                 if (primary && st->filtering)
-                    L = pf_add(L, pf_mul(m->kd, s_first_gather(st, &h, nf, ns)));
+                    L = pf_add(L, pf_mul(kd, s_first_gather(st, &h, nf, ns)));
                 else if (n > 0)
-                    L = pf_add(L, pf_mul(m->kd, s_gather_mean(st, &h, nf, ns, n)));
+                    L = pf_add(L, pf_mul(kd, s_gather_mean(st, &h, nf, ns, n)));
             }
         }
+        if (pf_mat_coated(m))
+            L = pf_add(L, s_coat(st, &h, m, nf, ns, wo, depth, thr));
         if (pf_mat_glossy(m) && depth < c->settings.max_depth) {
             pf_vec3 r = pf_reflect(wo, ns);
             pf_vec3 wi = pf_to_world(pf_sample_phong(s_u(st), s_u(st), m->ns), r);
@@ -510,20 +566,19 @@ static pf_vec3 s_radiance(s_state *st, pf_ray_t ray, int depth, pf_vec3 thr, int
      * chosen by Fresnel deeper down. The refracted branch near the eye (or
      * the reflection alone under total internal reflection) goes on as the
      * primary path; s_primary_hit follows the same choice. */
-    pf_dielectric_t g = pf_dielectric_at(m, ray.d, h.ng, wo, ns);
+    pf_dielectric_t g = s_glass(st, m, ray.d, h.ng, wo, ns);
     float f = g.f;
-    pf_vec3 wt = g.wt, wr = g.wr, kt = g.kt;
+    pf_vec3 wt = g.wt, wr = g.wr, kt = g.kt, ks = g.kr;
     if (!g.can_refract)
-        return pf_add(L, pf_mul(m->ks, s_radiance(st, pf_spawn_ray(&h, wr), depth + 1, pf_mul(thr, m->ks), 1,
-                                                  primary)));
+        return pf_add(L, pf_mul(ks, s_radiance(st, pf_spawn_ray(&h, wr), depth + 1, pf_mul(thr, ks), 1, primary)));
     if (depth < S_GLASS_SPLIT_DEPTH) {
-        pf_vec3 kr = pf_scale(m->ks, f), ktt = pf_scale(kt, 1.0f - f);
+        pf_vec3 kr = pf_scale(ks, f), ktt = pf_scale(kt, 1.0f - f);
         pf_vec3 lr = s_radiance(st, pf_spawn_ray(&h, wr), depth + 1, pf_mul(thr, kr), 1, 0);
         pf_vec3 lt = s_radiance(st, pf_spawn_ray(&h, wt), depth + 1, pf_mul(thr, ktt), 1, primary);
         return pf_add(L, pf_add(pf_mul(kr, lr), pf_mul(ktt, lt)));
     }
     if (s_u(st) < f)
-        return pf_add(L, pf_mul(m->ks, s_radiance(st, pf_spawn_ray(&h, wr), depth + 1, pf_mul(thr, m->ks), 1, 0)));
+        return pf_add(L, pf_mul(ks, s_radiance(st, pf_spawn_ray(&h, wr), depth + 1, pf_mul(thr, ks), 1, 0)));
     return pf_add(L, pf_mul(kt, s_radiance(st, pf_spawn_ray(&h, wt), depth + 1, pf_mul(thr, kt), 1, 0)));
 }
 
@@ -666,11 +721,11 @@ static const pf_material_t *s_primary_hit(const pf_render_ctx_t *c, pf_ray_t ray
         pf_vec3 wo = pf_neg(ray.d);
         *nf = pf_face_forward(h->ng, wo);
         *ns = pf_dot(h->ng, *nf) > 0.0f ? h->ns : pf_neg(h->ns);
-        if (m->type == PF_MAT_DIFFUSE)
+        if (m->type == PF_MAT_DIFFUSE || pf_mat_coated(m))
             return pf_mat_nonspecular(m) && !pf_is_black(m->kd) ? m : NULL;
         if (depth >= c->settings.max_depth)
             return NULL;
-        if (pf_mat_rough(m))
+        if (pf_mat_rough(m) || pf_mat_rough_glass(m))
             return NULL; /* a random branch from here on */
         pf_vec3 wi = pf_reflect(wo, *ns);
         if (pf_mat_dielectric(m)) {

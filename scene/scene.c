@@ -258,7 +258,8 @@ static pf_vec3 s_unit_normal(pf_vec3 n)
 static int s_mat_finite(const pf_material_t *m)
 {
     return pf_is_finite3(m->kd) && pf_is_finite3(m->ks) && pf_is_finite3(m->kt) && pf_is_finite3(m->le) &&
-           isfinite(m->ns) && isfinite(m->ior) && pf_is_finite3(m->eta) && pf_is_finite3(m->k) && isfinite(m->alpha);
+           isfinite(m->ns) && isfinite(m->ior) && pf_is_finite3(m->eta) && pf_is_finite3(m->k) && isfinite(m->alpha) &&
+           isfinite(m->thickness);
 }
 
 /* Removes triangles that cannot be rendered: zero area, an area whose square
@@ -340,6 +341,15 @@ int pf_scene_finalize(pf_scene_t *self, pf_error_t *err)
             return pf_error_set(err, PF_EPARSE, file, 0, "material '%s': conductor k must be >= 0", m->name);
         if (m->type == PF_MAT_CONDUCTOR && !(m->alpha >= 0.0f && m->alpha <= 1.0f))
             return pf_error_set(err, PF_EPARSE, file, 0, "material '%s': conductor roughness must be in [0, 1]",
+                                m->name);
+        if (m->type == PF_MAT_GLASS && !(m->alpha >= 0.0f && m->alpha <= 1.0f))
+            return pf_error_set(err, PF_EPARSE, file, 0, "material '%s': glass roughness must be in [0, 1]", m->name);
+        if (m->type == PF_MAT_COATED &&
+            !(m->ior >= 1.0f && m->alpha >= 0.0f && m->alpha <= 1.0f && m->thickness >= 0.0f &&
+              m->kd.x >= 0.0f && m->kd.y >= 0.0f && m->kd.z >= 0.0f && pf_maxc(m->kd) <= 1.0f))
+            return pf_error_set(err, PF_EPARSE, file, 0,
+                                "material '%s': coated needs ior >= 1, roughness in [0, 1], thickness >= 0 and "
+                                "reflectance in [0, 1]",
                                 m->name);
         if (m->type > PF_MAT_LAST)
             return pf_error_set(err, PF_EPARSE, file, 0, "material '%s': unknown type %d", m->name, (int)m->type);

@@ -21,22 +21,26 @@ typedef enum {
     PF_MAT_CONDUCTOR = 3, /* metal: GGX microfacets of roughness alpha (0: smooth), complex index eta + i k per channel */
     PF_MAT_THIN_DIELECTRIC = 4, /* thin sheet of index ior (a window pane as one quad): reflects R' tinted ks,
                                  * passes 1 - R' unbent tinted kt, alike from both sides (pbrt-v4 thindielectric) */
+    PF_MAT_COATED = 5, /* Lambertian kd under a dielectric coat of index ior, GGX roughness alpha (0: smooth)
+                        * and thickness (pbrt-v4 coateddiffuse; material/coated.h) */
 } pf_mat_type;
-#define PF_MAT_LAST PF_MAT_THIN_DIELECTRIC
+#define PF_MAT_LAST PF_MAT_COATED
 
 #define PF_NAME_MAX 64
 
 typedef struct pf_material {
     char name[PF_NAME_MAX];
     pf_mat_type type;
-    pf_vec3 kd;  /* diffuse albedo (DIFFUSE) */
+    pf_vec3 kd;  /* diffuse albedo (DIFFUSE, the base of COATED) */
     pf_vec3 ks;  /* Phong glossy albedo (DIFFUSE), reflectance (MIRROR), reflection tint (GLASS, THIN_DIELECTRIC) */
     float ns;    /* Phong exponent (DIFFUSE with ks > 0) */
     pf_vec3 kt;  /* transmission tint (GLASS, THIN_DIELECTRIC) */
-    float ior;   /* index of refraction (GLASS, THIN_DIELECTRIC) */
+    float ior;   /* index of refraction (GLASS, THIN_DIELECTRIC, the coat of COATED) */
     pf_vec3 eta; /* real part of the complex index of refraction (CONDUCTOR), > 0 */
     pf_vec3 k;   /* imaginary part, the extinction coefficient (CONDUCTOR), >= 0 */
-    float alpha; /* GGX roughness alpha in [0, 1] (CONDUCTOR); below 1e-3 a smooth mirror */
+    float alpha; /* GGX roughness alpha in [0, 1] (CONDUCTOR, COATED's coat); below 1e-3 a smooth mirror */
+    float thickness; /* COATED: the coat's thickness, each crossing attenuates by exp(-thickness / |cos|)
+                      * (pbrt-v4's layered BSDF, default 0.01 there); 0: lossless */
     pf_vec3 le;  /* emitted radiance, one-sided */
 } pf_material_t;
 

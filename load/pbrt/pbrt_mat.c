@@ -5,20 +5,19 @@
  * Materials (each distinct (material, area light) pair becomes one scene
  * material, named after the pbrt material):
  *   diffuse             DIFFUSE kd = reflectance
- *   coateddiffuse       DIFFUSE: the coat's normal-incidence Fresnel F0 as a
- *                       Phong lobe (ks = F0, ns = 2 / alpha^2 - 2, at most
- *                       10000), the base seen through the coat as
- *                       kd = (1 - F0)(1 - Fdr) R / (1 - Fdr R), Fdr the
- *                       coat's internal diffuse reflectance (Egan and
- *                       Hilgeman's fit); warned as approximated
+ *   coateddiffuse       COATED kd = reflectance, ior = eta (below 1: 1,
+ *                       warned), alpha from the roughness (below; u != v:
+ *                       their mean, warned), thickness (default 0.01); a
+ *                       medium albedo is warned as ignored (material/coated.h
+ *                       is the analytic model of pbrt's layered BSDF)
  *   conductor           CONDUCTOR eta, k per channel (pbrt's spectra at the
  *                       RGB primaries), or "reflectance" r: eta 1,
  *                       k = 2 sqrt(r) / sqrt(1 - r); alpha from the
  *                       roughness (below); anisotropic u != v: their mean,
  *                       warned
  *   coatedconductor     MIRROR of its conductor; warned
- *   dielectric          GLASS ior = eta (a named glass: its index); rough
- *                       ones warned
+ *   dielectric          GLASS ior = eta (a named glass: its index), alpha
+ *                       from the roughness (rough glass from 1e-3)
  *   thindielectric      THIN_DIELECTRIC ior = eta
  *   diffusetransmission DIFFUSE kd = reflectance, warned
  *   mix                 the first of its two materials, warned
@@ -138,8 +137,6 @@ static void s_what(const pf_pbrt_t *c, const pf_pbrt_mat_t *m, char *out, size_t
         snprintf(out, cap, "Material \"%s\"", m->type);
 }
 
-/* pbrt's alpha from roughness, uroughness, vroughness and remaproughness:
- * the larger of the two. */
 /* The two alphas of "roughness" / "uroughness" / "vroughness" (remapped by
  * "remaproughness", default true: alpha = sqrt(roughness)). */
 static int s_alpha_uv(pf_pbrt_t *c, pf_pbrt_params_t *ps, const char *prefix, const char *what, double *au,
@@ -165,15 +162,6 @@ static int s_alpha_uv(pf_pbrt_t *c, pf_pbrt_params_t *ps, const char *prefix, co
     *au = remap ? sqrt(u) : u;
     *av = remap ? sqrt(v) : v;
     return PF_OK;
-}
-
-/* The larger alpha (for the approximations that only ask how rough). */
-static int s_alpha(pf_pbrt_t *c, pf_pbrt_params_t *ps, const char *prefix, const char *what, double *alpha)
-{
-    double u, v;
-    int rc = s_alpha_uv(c, ps, prefix, what, &u, &v);
-    *alpha = fmax(u, v);
-    return rc;
 }
 
 /* Index of refraction from "eta" (float, spectrum or float texture). */
@@ -233,31 +221,35 @@ static int s_diffuse(pf_pbrt_t *c, pf_pbrt_mat_t *m, const char *what)
 
 static int s_coated_diffuse(pf_pbrt_t *c, pf_pbrt_mat_t *m, const char *what)
 {
-    double alpha, eta;
-    pf_vec3 r;
-    int rc = pf_pbrt_get_color(c, &m->params, "reflectance", PF_PBRT_ALBEDO, pf_v3s(0.5f), what, &r, NULL);
+    double au, av, eta, thickness;
+    pf_vec3 albedo = pf_v3s(0.0f);
+    int rc = pf_pbrt_get_color(c, &m->params, "reflectance", PF_PBRT_ALBEDO, pf_v3s(0.5f), what, &m->m.kd, NULL);
     if (rc == PF_OK)
-        rc = s_alpha(c, &m->params, "", what, &alpha);
+        rc = s_alpha_uv(c, &m->params, "", what, &au, &av);
     if (rc == PF_OK)
         rc = s_eta(c, &m->params, "eta", what, &eta);
+    if (rc == PF_OK)
+        rc = pf_pbrt_get_float_tex(c, &m->params, "thickness", 0.01, what, &thickness, NULL);
+    if (rc == PF_OK && pf_pbrt_param(&m->params, "albedo"))
+        rc = pf_pbrt_get_color(c, &m->params, "albedo", PF_PBRT_ALBEDO, pf_v3s(0.0f), what, &albedo, NULL);
     if (rc)
         return rc;
-    double f0 = (eta - 1) * (eta - 1) / ((eta + 1) * (eta + 1));
-    /* Internal diffuse reflectance of the coat (relative index eta >= 1). */
-    double e = fmax(eta, 1.0), fdr = -1.440 / (e * e) + 0.710 / e + 0.668 + 0.0636 * e;
-    fdr = fmin(fmax(fdr, 0.0), 0.99);
-    float kd[3], rv[3] = { r.x, r.y, r.z };
-    for (int i = 0; i < 3; i++)
-        kd[i] = (float)((1 - f0) * (1 - fdr) * rv[i] / (1 - fdr * rv[i]));
-    m->m.type = PF_MAT_DIFFUSE;
-    m->m.kd = pf_v3(kd[0], kd[1], kd[2]);
-    m->m.ks = pf_v3s((float)f0);
-    m->m.ns = (float)fmin(alpha > 0.0 ? 2.0 / (alpha * alpha) - 2.0 : 1e4, 1e4);
-    m->m.ns = fmaxf(m->m.ns, 1.0f);
-    s_use_all(&m->params); /* thickness, albedo, g, maxdepth, nsamples: part of the approximation */
-    return pf_pbrt_warn(c, m->loc, "coateddiffuse (approximated)",
-                        "%s: rendered as diffuse kd (%.3g %.3g %.3g) under a Phong coat ks %.3g, ns %.0f", what,
-                        m->m.kd.x, m->m.kd.y, m->m.kd.z, f0, m->m.ns);
+    m->m.type = PF_MAT_COATED;
+    m->m.alpha = (float)fmin(0.5 * (au + av), 1.0);
+    m->m.ior = (float)fmax(eta, 1.0);
+    m->m.thickness = (float)fmax(thickness, 0.0);
+    s_use_all(&m->params); /* g, maxdepth, nsamples: the analytic model needs none */
+    if (au != av && (rc = pf_pbrt_warn(c, m->loc, "anisotropic roughness (isotropic mean used)",
+                                       "%s: alphas %.3g and %.3g; rendered with their mean %.3g", what, au, av,
+                                       0.5 * (au + av))))
+        return rc;
+    if (eta < 1.0 && (rc = pf_pbrt_warn(c, m->loc, "coat index below 1 (clamped)", "%s: eta %.3g rendered as 1",
+                                        what, eta)))
+        return rc;
+    if (!pf_is_black(albedo))
+        return pf_pbrt_warn(c, m->loc, "coateddiffuse medium albedo (ignored)",
+                            "%s: the scattering medium between coat and base is left out", what);
+    return PF_OK;
 }
 
 /* A conductor's normal-incidence reflectance from eta/k or reflectance. */
@@ -334,18 +326,20 @@ static int s_conductor(pf_pbrt_t *c, pf_pbrt_mat_t *m, const char *what, int coa
 
 static int s_dielectric(pf_pbrt_t *c, pf_pbrt_mat_t *m, const char *what, int thin)
 {
-    double eta, alpha = 0.0;
+    double eta, au = 0.0, av = 0.0;
     int rc = s_eta(c, &m->params, "eta", what, &eta);
     if (rc == PF_OK && !thin)
-        rc = s_alpha(c, &m->params, "", what, &alpha);
+        rc = s_alpha_uv(c, &m->params, "", what, &au, &av);
     if (rc)
         return rc;
     m->m.type = thin ? PF_MAT_THIN_DIELECTRIC : PF_MAT_GLASS;
     m->m.ks = m->m.kt = pf_v3s(1.0f);
     m->m.ior = (float)eta;
-    if (alpha >= 1e-3)
-        return pf_pbrt_warn(c, m->loc, "rough dielectric (rendered as smooth glass until GGX lands)",
-                            "%s: alpha %.3g; rendered as smooth glass of index %g", what, alpha, eta);
+    m->m.alpha = (float)fmin(0.5 * (au + av), 1.0); /* rough glass from 1e-3 (material/dielectric.h) */
+    if (au != av && (rc = pf_pbrt_warn(c, m->loc, "anisotropic roughness (isotropic mean used)",
+                                       "%s: alphas %.3g and %.3g; rendered with their mean %.3g", what, au, av,
+                                       0.5 * (au + av))))
+        return rc;
     return PF_OK;
 }
 

@@ -269,7 +269,8 @@ static void test_materials(void)
         "MakeNamedMaterial \"bk7\" \"string type\" \"dielectric\" \"spectrum eta\" \"glass-BK7\"\n"
         "MakeNamedMaterial \"water\" \"string type\" \"dielectric\" \"float eta\" 1.33\n"
         "MakeNamedMaterial \"pane\" \"string type\" \"thindielectric\" \"float eta\" 1.52\n"
-        "MakeNamedMaterial \"coat\" \"string type\" \"coateddiffuse\" \"rgb reflectance\" [1 1 1]\n"
+        "MakeNamedMaterial \"coat\" \"string type\" \"coateddiffuse\" \"rgb reflectance\" [1 1 1] \"float roughness\" 0.04 "
+        "\"float thickness\" 0.02\n"
         "Texture \"img\" \"spectrum\" \"imagemap\" \"string filename\" \"x.png\"\n"
         "Texture \"k\" \"spectrum\" \"constant\" \"rgb value\" [0.1 0.2 0.3]\n"
         "MakeNamedMaterial \"tex\" \"string type\" \"diffuse\" \"texture reflectance\" \"img\"\n"
@@ -315,8 +316,10 @@ static void test_materials(void)
                   s_vnear(m->kt, 1, 1, 1) && s_warned(&rep, "thindielectric") == 0,
               "thindielectric: a thin sheet of index 1.52, not warned (type %d)", (int)m->type);
     if ((m = s_mat(s, "coat")))
-        CHECK(m->type == PF_MAT_DIFFUSE && s_vnear(m->ks, 0.04f, 0.04f, 0.04f) && m->kd.x > 0.9f && m->kd.x < 0.961f &&
-              m->ns >= 1000.0f, "kd %g ns %g", m->kd.x, m->ns);
+        CHECK(m->type == PF_MAT_COATED && s_vnear(m->kd, 1, 1, 1) && s_near(m->alpha, 0.2f) && s_near(m->ior, 1.5f) &&
+                  s_near(m->thickness, 0.02f),
+              "coateddiffuse: kd %g alpha %g (remapped sqrt 0.04) ior %g thickness %g", m->kd.x, m->alpha, m->ior,
+              m->thickness);
     if ((m = s_mat(s, "tex")))
         CHECK(s_vnear(m->kd, 0.5f, 0.5f, 0.5f));
     if ((m = s_mat(s, "const")))
@@ -328,7 +331,7 @@ static void test_materials(void)
     const pf_mesh_t *last = &s->meshes[s->nmeshes - 1];
     CHECK(s_vnear(s->mats[last->mat[0]].kd, 0.25f, 0.25f, 0.25f), "Material sets the current material");
     CHECK(s_warned(&rep, "rough conductor") == 0 && s_warned(&rep, "anisotropic roughness (isotropic mean used)") == 1 &&
-          s_warned(&rep, "coateddiffuse") == 1 &&
+          s_warned(&rep, "coateddiffuse") == 0 &&
           s_warned(&rep, "texture") == 1 && s_warned(&rep, "mix") == 1 && s_warned(&rep, "interface") == 1 &&
           s_warned(&rep, "unused parameter \"float foo\"") == 1);
     pf_scene_destroy(&s);
@@ -723,10 +726,12 @@ static void test_bitterli(void)
         CHECK(l->type == PF_LIGHT_DISTANT && pf_dot(l->dir, to_sun) < -0.9999f && s_vnear(l->intensity, 10, 10, 10),
               "dir %g %g %g", l->dir.x, l->dir.y, l->dir.z);
     }
-    const char *kinds[] = { "Sampler (ignored)", "light type infinite", "texture", "coateddiffuse (approximated)" };
+    const char *kinds[] = { "Sampler (ignored)", "light type infinite", "texture" };
     for (size_t i = 0; i < sizeof kinds / sizeof *kinds; i++)
         CHECK(s_warned(&rep, kinds[i]) >= 1, "%s", kinds[i]);
-    CHECK(rep.nwarnings == 4 && s_warned(&rep, "texture") == 3 && s_warned(&rep, "rough conductor") == 0, "%zu kinds",
+    CHECK(rep.nwarnings == 3 && s_warned(&rep, "texture") == 3 && s_warned(&rep, "coateddiffuse") == 0 &&
+              s_warned(&rep, "rough conductor") == 0,
+          "%zu kinds",
           rep.nwarnings);
     pf_scene_destroy(&s);
     s = pf_scene_load(dining, &err);

@@ -578,6 +578,37 @@ static void test_thin_dielectric(void)
     pf_scene_destroy(&sc);
 }
 
+/* The coated diffuse: kd, ior, roughness, thickness (default 0: lossless);
+ * keys of other kinds and bad ranges are errors. */
+static void test_coated(void)
+{
+    pf_error_t err = { { 0 } };
+    pf_scene_t *sc = s_json_text("{ \"materials\": [ { \"name\": \"lacquer\", \"type\": \"coated\",\n"
+                                 "  \"kd\": [0.5, 0.2, 0.1], \"ior\": 1.6, \"roughness\": 0.1, \"thickness\": 0.01 },\n"
+                                 "  { \"name\": \"plain\", \"type\": \"coated\" } ] }\n",
+                                 &err);
+    CHECK(sc && sc->nmats == 2, "coated loads: %s", sc ? "" : err.msg);
+    if (sc && sc->nmats == 2) {
+        const pf_material_t *m = &sc->mats[0], *p = &sc->mats[1];
+        CHECK(m->type == PF_MAT_COATED && m->ior == 1.6f && m->alpha == 0.1f && m->thickness == 0.01f &&
+                  near3(m->kd, pf_v3(0.5f, 0.2f, 0.1f), 0),
+              "lacquer type %d ior %g alpha %g thickness %g", (int)m->type, (double)m->ior, (double)m->alpha,
+              (double)m->thickness);
+        CHECK(p->type == PF_MAT_COATED && p->ior == 1.5f && p->alpha == 0.0f && p->thickness == 0.0f,
+              "defaults: ior %g alpha %g thickness %g", (double)p->ior, (double)p->alpha, (double)p->thickness);
+    }
+    pf_scene_destroy(&sc);
+    sc = s_json_text("{ \"materials\": [ { \"name\": \"c\", \"type\": \"coated\", \"ks\": 0.5 } ] }\n", &err);
+    CHECK(!sc && strstr(err.msg, "key 'ks' does not apply to a coated material"), "ks on coated: %s", err.msg);
+    pf_scene_destroy(&sc);
+    sc = s_json_text("{ \"materials\": [ { \"name\": \"c\", \"type\": \"coated\", \"thickness\": -1 } ] }\n", &err);
+    CHECK(!sc && strstr(err.msg, "'thickness' in material must be >= 0"), "negative thickness: %s", err.msg);
+    pf_scene_destroy(&sc);
+    sc = s_json_text("{ \"materials\": [ { \"name\": \"c\", \"type\": \"coated\", \"ior\": 0.8 } ] }\n", &err);
+    CHECK(!sc && strstr(err.msg, "'ior' must be >= 1"), "ior below 1: %s", err.msg);
+    pf_scene_destroy(&sc);
+}
+
 /* The conductor's keys: "eta" + "k" land as given, "reflectance" becomes
  * eta 1 and the k of that normal-incidence reflectance, "roughness" is the
  * GGX alpha (default 0); errors for both forms, neither, or bad ranges. */
@@ -738,6 +769,7 @@ int main(void)
     test_camera_lens();
     test_conductor();
     test_thin_dielectric();
+    test_coated();
     test_models();
     test_remap_errors();
     test_corruptions();

@@ -293,7 +293,7 @@ static s_offsets_t s_walk(const uint8_t *d)
             o.mat1_type = at;
         if (i == 4)
             o.mat4_eta = at + 1 + 56;
-        at += 1 + 56 + 28;
+        at += 1 + 56 + 32;
     }
     o.nmeshes = at;
     uint32_t nmesh = d[at];
@@ -374,10 +374,11 @@ static void test_scene_blob(void)
     const s_spatch_t patches[] = {
         { 0, 1, 'X', 0, "bad magic", "magic" },
         { 4, 2, 9, 0, "format version 9", "version" },
-        { 4, 2, 2, 0, "format version 2, this build reads 6", "version 2 (before the lens)" },
-        { 4, 2, 3, 0, "format version 3, this build reads 6", "version 3 (before the conductor)" },
-        { 4, 2, 4, 0, "format version 4, this build reads 6", "version 4 (before the thin dielectric)" },
-        { 4, 2, 5, 0, "format version 5, this build reads 6", "version 5 (before the distant light)" },
+        { 4, 2, 2, 0, "format version 2, this build reads 7", "version 2 (before the lens)" },
+        { 4, 2, 3, 0, "format version 3, this build reads 7", "version 3 (before the conductor)" },
+        { 4, 2, 4, 0, "format version 4, this build reads 7", "version 4 (before the thin dielectric)" },
+        { 4, 2, 5, 0, "format version 5, this build reads 7", "version 5 (before the distant light)" },
+        { 4, 2, 6, 0, "format version 6, this build reads 7", "version 6 (before the coated diffuse)" },
         { o.reserved, 2, 1, 0, "reserved", "reserved field" },
         { o.has_camera, 1, 2, 0, "has_camera", "has_camera 2" },
         { o.has_camera + 1, -4, 0, NAN, "camera pos is not a finite number", "camera NaN" },
@@ -395,7 +396,7 @@ static void test_scene_blob(void)
         { o.mat0_name, 2, 64, 0, "name is 64 bytes", "material name too long" },
         { o.mat0_name + 2, 1, 0, 0, "NUL", "material name with a NUL" },
         { o.mat1_type, 1, 7, 0, "material 1 type 7", "material type" },
-        { o.mat1_type, 1, 5, 0, "material 1 type 5 is not a material type (0..4)", "material type 5" },
+        { o.mat1_type, 1, 6, 0, "material 1 type 6 is not a material type (0..5)", "material type 6" },
         { o.mat1_type + 1, -4, 0, INFINITY, "material 1 kd is not a finite number", "material inf" },
         { o.mat4_eta, -4, 0, -1.0f, "material 4 conductor needs eta > 0", "conductor eta -1" },
         { o.mat4_eta + 12, -4, 0, -0.5f, "material 4 conductor needs eta > 0", "conductor k -0.5" },
