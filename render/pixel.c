@@ -143,11 +143,68 @@ static void s_permute(uint8_t *p, int n, pf_rng_t *rng)
     }
 }
 
-void pf_edges_strata(const pf_render_ctx_t *c, int px, int py, uint8_t sx[PF_EDGE_SAMPLES],
-                     uint8_t sy[PF_EDGE_SAMPLES])
+void pf_edges_strata(const pf_render_ctx_t *c, int px, int py, pf_edge_strata_t *e)
 {
     uint64_t pixel = (uint64_t)py * (uint64_t)c->camera.width + (uint64_t)px;
     pf_rng_t perm = pf_rng_make(c->settings.seed, PF_STREAM_EDGE, pixel, PF_EDGE_SAMPLES);
-    s_permute(sx, PF_EDGE_SAMPLES, &perm);
-    s_permute(sy, PF_EDGE_SAMPLES, &perm);
+    s_permute(e->sx, PF_EDGE_SAMPLES, &perm);
+    s_permute(e->sy, PF_EDGE_SAMPLES, &perm);
+}
+
+pf_pattern_t pf_pattern_make(int spp)
+{
+    pf_pattern_t pt = { spp > 0 ? spp : 1, 0, 0, 0 };
+    int kx = (int)sqrt((double)pt.spp);
+    while ((kx + 1) * (kx + 1) <= pt.spp)
+        kx++;
+    while (kx * kx > pt.spp)
+        kx--;
+    pt.kx = kx;
+    pt.ky = pt.spp / kx;
+    pt.strata = pt.kx * pt.ky;
+    return pt;
+}
+
+/* The lens sample of a pixel's own sample takes the last two dimensions of
+ * its stream (2^32 - 2 and 2^32 - 1), which its draws in order (dimensions
+ * 1, 2, ...) never reach: a thin-lens render shares no number with anything
+ * else of the sample, and a pinhole one draws exactly what it drew before
+ * the lens existed. */
+#define S_LENS_DIM 0xfffffffdu
+
+pf_ray_t pf_pixel_sample(const pf_render_ctx_t *c, const pf_pattern_t *pt, int px, int py, int s,
+                         const pf_edge_strata_t *e, pf_rng_t *rng, pf_film_t *film)
+{
+    uint64_t pixel = (uint64_t)py * (uint64_t)c->camera.width + (uint64_t)px;
+    int lens = c->camera.lens_radius > 0.0f;
+    float jx, jy;
+    film->u1 = film->u2 = 0.0f;
+    if (s < pt->spp) {
+        *rng = pf_rng_make(c->settings.seed, PF_STREAM_PIXEL, pixel, (uint32_t)s);
+        if (lens) {
+            pf_rng_t l = *rng;
+            l.dim = S_LENS_DIM;
+            film->u1 = pf_rng_float(&l);
+            film->u2 = pf_rng_float(&l);
+        }
+        jx = pf_rng_float(rng);
+        jy = pf_rng_float(rng);
+        if (s < pt->strata) {
+            jx = ((float)(s % pt->kx) + jx) / (float)pt->kx;
+            jy = ((float)(s / pt->kx) + jy) / (float)pt->ky;
+        }
+    } else {
+        int j = s - pt->spp;
+        *rng = pf_rng_make(c->settings.seed, PF_STREAM_EDGE, pixel, (uint32_t)j);
+        jx = ((float)e->sx[j] + pf_rng_float(rng)) / (float)PF_EDGE_SAMPLES;
+        jy = ((float)e->sy[j] + pf_rng_float(rng)) / (float)PF_EDGE_SAMPLES;
+        if (lens) {
+            film->u1 = pf_rng_float(rng);
+            film->u2 = pf_rng_float(rng);
+        }
+    }
+    pf_pixel_filter(&c->settings, &jx, &jy);
+    film->fx = (float)px + jx;
+    film->fy = (float)py + jy;
+    return pf_camera_ray_lens(&c->camera, film->fx, film->fy, film->u1, film->u2);
 }

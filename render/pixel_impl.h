@@ -7,7 +7,9 @@
 
 #include <stdint.h>
 
+#include "base/rng.h"
 #include "base/vec.h"
+#include "scene/camera.h"
 #include "scene/scene.h"
 
 /* render.h's context (this header is read by render.c, and so may not
@@ -38,10 +40,39 @@ int pf_edges_pixel(const float *probe, int x0, int y0, int w, int px, int py);
 /* The camera samples an edge pixel takes beyond its spp (at most 256). */
 #define PF_EDGE_SAMPLES 64
 
-/* The Latin hypercube of edge pixel (px, py)'s extra samples: sample j lies
- * in column sx[j] and row sy[j] of a PF_EDGE_SAMPLES-square grid of the
- * pixel (random permutations drawn from PF_STREAM_EDGE). */
-void pf_edges_strata(const pf_render_ctx_t *c, int px, int py, uint8_t sx[PF_EDGE_SAMPLES],
-                     uint8_t sy[PF_EDGE_SAMPLES]);
+/* The Latin hypercube of an edge pixel's extra samples: sample j lies in
+ * column sx[j] and row sy[j] of a PF_EDGE_SAMPLES-square grid of the pixel. */
+typedef struct pf_edge_strata {
+    uint8_t sx[PF_EDGE_SAMPLES], sy[PF_EDGE_SAMPLES];
+} pf_edge_strata_t;
+
+/* Fills edge pixel (px, py)'s strata: random permutations drawn from
+ * PF_STREAM_EDGE. */
+void pf_edges_strata(const pf_render_ctx_t *c, int px, int py, pf_edge_strata_t *e);
+
+/* A tile's sampling pattern: jitter stratified on a kx x ky grid,
+ * kx = floor(sqrt(spp)) and ky = floor(spp / kx) (edges against the bright
+ * light dominate the error otherwise); the few samples beyond kx * ky are
+ * uniform. A square spp fills a k x k grid. */
+typedef struct pf_pattern {
+    int spp, kx, ky, strata;
+} pf_pattern_t;
+
+pf_pattern_t pf_pattern_make(int spp);
+
+/* Where a camera sample looks from: its film position (fx, fy) and its lens
+ * sample (u1, u2; 0 for a pinhole camera). */
+typedef struct pf_film {
+    float fx, fy, u1, u2;
+} pf_film_t;
+
+/* Camera sample s of pixel (px, py), placed by the pattern and the pixel
+ * filter, and its ray. s < pt->spp: the pixel's own sample, its stream
+ * (PF_STREAM_PIXEL, pixel, s) started in *rng; spp <= s < spp +
+ * PF_EDGE_SAMPLES: an edge pixel's extra sample in the cell of e, stream
+ * (PF_STREAM_EDGE, pixel, s - spp). The lens sample of a thin-lens camera
+ * comes from the stream too; the rest of the stream is the sample's. */
+pf_ray_t pf_pixel_sample(const pf_render_ctx_t *c, const pf_pattern_t *pt, int px, int py, int s,
+                         const pf_edge_strata_t *e, pf_rng_t *rng, pf_film_t *film);
 
 #endif

@@ -81,7 +81,7 @@
  * beyond its recursive ray to the path that ray starts.
  *
  * Camera rays come from scene/camera.h: pinhole, or thin lens when the
- * camera's lens_radius > 0 (the lens sample's numbers: s_camera_sample).
+ * camera's lens_radius > 0 (the lens sample's numbers: pf_pixel_sample in pixel.c).
  *
  * Threads: pf_render_tile is re-entrant; pf_render_image runs tiles over
  * OpenMP, each thread with FTZ/DAZ set. */
@@ -619,91 +619,15 @@ void pf_render_ctx_init(pf_render_ctx_t *ctx, const pf_frame_t *frame, const pf_
 
 /* Filtering the first gather: see render/filter.c. */
 
-/* The tile's sampling pattern: jitter stratified on a kx x ky grid,
- * kx = floor(sqrt(spp)) and ky = floor(spp / kx) (edges against the bright
- * light dominate the error otherwise); the few samples beyond kx * ky are
- * uniform. A square spp fills a k x k grid. */
-typedef struct s_pattern {
-    int spp, kx, ky, strata;
-} s_pattern;
-
-static s_pattern s_pattern_make(int spp)
+/* Camera sample s of pixel (px, py) (s < spp: one of its own; beyond, an
+ * edge pixel's extra sample from its strata e): starts the sample's stream
+ * in st and returns its ray through the film position *film receives. */
+static pf_ray_t s_camera_sample(s_state *st, const pf_pattern_t *pt, int px, int py, int s,
+                                const pf_edge_strata_t *e, pf_film_t *film)
 {
-    s_pattern pt = { spp > 0 ? spp : 1, 0, 0, 0 };
-    int kx = (int)sqrt((double)pt.spp);
-    while ((kx + 1) * (kx + 1) <= pt.spp)
-        kx++;
-    while (kx * kx > pt.spp)
-        kx--;
-    pt.kx = kx;
-    pt.ky = pt.spp / kx;
-    pt.strata = pt.kx * pt.ky;
-    return pt;
-}
-
-/* Where a camera sample looks from: its film position (fx, fy) and its lens
- * sample (u1, u2; 0 for a pinhole camera). */
-typedef struct s_film {
-    float fx, fy, u1, u2;
-} s_film;
-
-/* The lens sample takes the last two dimensions of the sample's pixel stream
- * (2^32 - 2 and 2^32 - 1), which its draws in order (dimensions 1, 2, ...)
- * never reach: a thin-lens render shares no number with anything else of
- * the sample, and a pinhole one draws exactly what it drew before the lens
- * existed. */
-#define S_LENS_DIM 0xfffffffdu
-
-/* Camera sample s of pixel (px, py): starts the sample's pixel stream in st
- * and returns its ray, from the lens point and through the film position
- * that *film receives. */
-static pf_ray_t s_camera_sample(s_state *st, const s_pattern *pt, int px, int py, int s, s_film *film)
-{
-    const pf_render_ctx_t *ctx = st->ctx;
-    st->pixel = (uint64_t)py * (uint64_t)ctx->camera.width + (uint64_t)px;
+    st->pixel = (uint64_t)py * (uint64_t)st->ctx->camera.width + (uint64_t)px;
     st->sample = (uint32_t)s;
-    st->rng = pf_rng_make(ctx->settings.seed, PF_STREAM_PIXEL, st->pixel, (uint32_t)s);
-    film->u1 = film->u2 = 0.0f;
-    if (ctx->camera.lens_radius > 0.0f) {
-        pf_rng_t lens = st->rng;
-        lens.dim = S_LENS_DIM;
-        film->u1 = pf_rng_float(&lens);
-        film->u2 = pf_rng_float(&lens);
-    }
-    float jx = s_u(st), jy = s_u(st);
-    if (s < pt->strata) {
-        jx = ((float)(s % pt->kx) + jx) / (float)pt->kx;
-        jy = ((float)(s / pt->kx) + jy) / (float)pt->ky;
-    }
-    pf_pixel_filter(&ctx->settings, &jx, &jy);
-    film->fx = (float)px + jx;
-    film->fy = (float)py + jy;
-    return pf_camera_ray_lens(&ctx->camera, film->fx, film->fy, film->u1, film->u2);
-}
-
-/* Edge pixel (px, py)'s extra camera sample s (spp <= s < spp +
- * PF_EDGE_SAMPLES; its sample index for the streams it draws): in the
- * Latin hypercube cell (sx, sy)[s - spp], through the pixel filter, from
- * its own stream (PF_STREAM_EDGE). */
-static pf_ray_t s_edge_sample(s_state *st, int px, int py, int s, const uint8_t *sx, const uint8_t *sy,
-                              s_film *film)
-{
-    const pf_render_ctx_t *ctx = st->ctx;
-    int j = s - ctx->settings.spp;
-    st->pixel = (uint64_t)py * (uint64_t)ctx->camera.width + (uint64_t)px;
-    st->sample = (uint32_t)s;
-    st->rng = pf_rng_make(ctx->settings.seed, PF_STREAM_EDGE, st->pixel, (uint32_t)j);
-    float jx = ((float)sx[j] + s_u(st)) / (float)PF_EDGE_SAMPLES;
-    float jy = ((float)sy[j] + s_u(st)) / (float)PF_EDGE_SAMPLES;
-    film->u1 = film->u2 = 0.0f;
-    if (ctx->camera.lens_radius > 0.0f) {
-        film->u1 = s_u(st);
-        film->u2 = s_u(st);
-    }
-    pf_pixel_filter(&ctx->settings, &jx, &jy);
-    film->fx = (float)px + jx;
-    film->fy = (float)py + jy;
-    return pf_camera_ray_lens(&ctx->camera, film->fx, film->fy, film->u1, film->u2);
+    return pf_pixel_sample(st->ctx, pt, px, py, s, e, &st->rng, film);
 }
 
 /* The end of a camera ray's primary path as s_radiance follows it (mirrors,
@@ -749,7 +673,7 @@ static const pf_material_t *s_primary_hit(const pf_render_ctx_t *c, pf_ray_t ray
  * S_FOOT_MAX times it. The neighbouring paths leave from the same lens
  * point as the sample's. */
 #define S_FOOT_MAX 32.0f
-static float s_footprint(const pf_render_ctx_t *c, const s_film *film, pf_vec3 p, pf_vec3 nf, float length,
+static float s_footprint(const pf_render_ctx_t *c, const pf_film_t *film, pf_vec3 p, pf_vec3 nf, float length,
                          float *base_out)
 {
     float base = length * 2.0f * c->camera.tan_half_v / (float)c->camera.height;
@@ -787,7 +711,7 @@ static int s_record_flush(const s_state *st, s_defer *d, const pf_vec3 *sums, co
  * samples are traced (s_defer; up to S_DEFER_MAX samples at a time), so
  * their trips from memory overlap the traces; each sample's gather still
  * reaches its surface's sum in sample order. */
-static void s_record_pixel(s_state *st, const s_pattern *pt, int px, int py, pf_filter_rec_t *rec)
+static void s_record_pixel(s_state *st, const pf_pattern_t *pt, int px, int py, pf_filter_rec_t *rec)
 {
     const pf_render_ctx_t *c = st->ctx;
     rec->nc = 0;
@@ -796,8 +720,8 @@ static void s_record_pixel(s_state *st, const s_pattern *pt, int px, int py, pf_
     pf_vec3 sums[S_DEFER_MAX];
     int owner[S_DEFER_MAX], nb = 0;
     for (int s = 0; s < pt->spp; s++) {
-        s_film film;
-        pf_ray_t ray = s_camera_sample(st, pt, px, py, s, &film);
+        pf_film_t film;
+        pf_ray_t ray = s_camera_sample(st, pt, px, py, s, NULL, &film);
         pf_hit_t h;
         pf_vec3 nf, ns;
         float length;
@@ -823,7 +747,7 @@ static void s_record_pixel(s_state *st, const s_pattern *pt, int px, int py, pf_
 /* A tile in the making: its first-gather records (none when not filtering). */
 struct pf_tile_plan {
     const pf_render_ctx_t *ctx;
-    s_pattern pt;
+    pf_pattern_t pt;
     int x0, y0, w, h;
     int R, filter;
     pf_filter_grid_t grid; /* the tile and its border, clipped to the image */
@@ -847,7 +771,7 @@ pf_tile_plan_t *pf_tile_plan_new(const pf_render_ctx_t *ctx, int x0, int y0, int
     pf_tile_plan_t *p = calloc(1, sizeof *p);
     PF_CHECK(p != NULL);
     p->ctx = ctx;
-    p->pt = s_pattern_make(ctx->settings.spp);
+    p->pt = pf_pattern_make(ctx->settings.spp);
     p->x0 = x0, p->y0 = y0, p->w = w, p->h = h;
     p->R = ctx->settings.gather_filter;
     p->filter = p->R > 0 && ctx->settings.gather > 0 && (ctx->terms & PF_TERM_INDIRECT) &&
@@ -895,13 +819,12 @@ void pf_tile_plan_render_row(pf_tile_plan_t *p, int row, float *out)
         /* on an emitter's edge, PF_EDGE_SAMPLES samples more (pixel_impl.h) */
         int edge = pf_edges_pixel(p->probe, p->x0, p->y0, p->w, px, py);
         int n = p->pt.spp + (edge ? PF_EDGE_SAMPLES : 0);
-        uint8_t sx[PF_EDGE_SAMPLES], sy[PF_EDGE_SAMPLES];
+        pf_edge_strata_t strata;
         if (edge)
-            pf_edges_strata(ctx, px, py, sx, sy);
+            pf_edges_strata(ctx, px, py, &strata);
         for (int s = 0; s < n; s++) {
-            s_film film;
-            pf_ray_t ray = s < p->pt.spp ? s_camera_sample(st, &p->pt, px, py, s, &film)
-                                         : s_edge_sample(st, px, py, s, sx, sy, &film);
+            pf_film_t film;
+            pf_ray_t ray = s_camera_sample(st, &p->pt, px, py, s, &strata, &film);
             pf_vec3 L = s_radiance(st, ray, 0, pf_v3s(1.0f), 1, 1);
             if (!pf_is_finite3(L) || L.x < 0.0f || L.y < 0.0f || L.z < 0.0f) {
                 /* never let a NaN or negative sample reach the image, but say so */
