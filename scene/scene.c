@@ -10,6 +10,7 @@
 
 #include "base/log.h"
 #include "base/reserve.h"
+#include "scene/texture.h"
 
 uint64_t pf_pass_seed(uint64_t seed, int pass)
 {
@@ -75,6 +76,7 @@ void pf_mesh_free(pf_mesh_t *mesh)
         return;
     free(mesh->pos);
     free(mesh->nrm);
+    free(mesh->uv);
     free(mesh->idx);
     free(mesh->mat);
     memset(mesh, 0, sizeof *mesh);
@@ -91,6 +93,9 @@ void pf_scene_destroy(pf_scene_t **self_p)
     free(self->mats);
     free(self->spheres);
     free(self->lights);
+    for (size_t i = 0; i < self->ntexs; i++)
+        pf_texture_free(&self->texs[i]);
+    free(self->texs);
     free(self);
     *self_p = NULL;
 }
@@ -300,6 +305,9 @@ int pf_scene_finalize(pf_scene_t *self, pf_error_t *err)
         if (m->type > PF_MAT_LAST)
             return pf_error_set(err, PF_EPARSE, file, 0, "material '%s': unknown type %d", m->name, (int)m->type);
     }
+    int trc = pf_textures_check(self, err);
+    if (trc)
+        return trc;
     size_t dropped = 0, ntris = 0;
     for (size_t mi = 0; mi < self->nmeshes; mi++) {
         pf_mesh_t *mesh = &self->meshes[mi];

@@ -38,6 +38,7 @@ typedef struct pf_material {
     pf_vec3 k;   /* imaginary part, the extinction coefficient (CONDUCTOR), >= 0 */
     float alpha; /* GGX roughness alpha in [0, 1] (CONDUCTOR); below 1e-3 a smooth mirror */
     pf_vec3 le;  /* emitted radiance, one-sided */
+    uint32_t kd_tex; /* 1 + index into pf_scene_t.texs: kd is that texture at the hit's uv; 0: kd as is */
 } pf_material_t;
 
 /* pbrt-v4's "reflectance" form of a conductor: eta = 1 and this k, which
@@ -49,12 +50,15 @@ static inline float pf_conductor_k_of_reflectance(float r)
     return 2.0f * sqrtf(r) / sqrtf(1.0f - r);
 }
 
-/* A triangle mesh in world space. nrm is per vertex (shading normals) or NULL. */
+/* A triangle mesh in world space. nrm is per vertex (shading normals) or
+ * NULL; uv is per vertex (texture coordinates, 2 floats each) or NULL, when
+ * a hit's uv is pbrt's default parametrization (scene/texture.h). */
 typedef struct pf_mesh {
     char name[PF_NAME_MAX];
     size_t nverts, ntris;
     pf_vec3 *pos;    /* nverts */
     pf_vec3 *nrm;    /* nverts, unit length, or NULL */
+    float *uv;       /* 2 * nverts, or NULL */
     uint32_t *idx;   /* 3 * ntris vertex indices */
     uint32_t *mat;   /* ntris material indices into pf_scene_t.mats */
 } pf_mesh_t;
@@ -146,6 +150,8 @@ typedef struct pf_scene {
     size_t nspheres, cap_spheres;
     pf_light_t *lights;
     size_t nlights, cap_lights;
+    struct pf_texture *texs;  /* the textures materials refer to (scene/texture.h) */
+    size_t ntexs, cap_texs;
     pf_camera_desc_t camera;
     int has_camera;
     pf_settings_t settings;
