@@ -29,6 +29,8 @@ pf_material_t pf_material_at(const pf_scene_t *scene, const pf_hit_t *hit)
         return m;
     float uv[2];
     pf_hit_uv(scene, hit, uv);
-    m.kd = pf_texture_eval(scene, m.kd_tex, uv[0], uv[1]);
+    /* Clamped to [0, 1] as pbrt-v4's diffuse material does: an albedo above
+     * 1 would make light, and a scaled texture can ask for one. */
+    m.kd = pf_vmin(pf_vmax(pf_texture_eval(scene, m.kd_tex, uv[0], uv[1]), pf_v3s(0.0f)), pf_v3s(1.0f));
     return m;
 }

@@ -14,8 +14,8 @@
  * about the sphere's world axes. */
 void pf_hit_uv(const pf_scene_t *scene, const pf_hit_t *hit, float uv[2]);
 
-/* A copy of the hit's material with its textured slots (kd) evaluated at
- * the hit's uv; the material itself when it has none. */
+/* A copy of the hit's material with its textured slots (kd, clamped to
+ * [0, 1]) evaluated at the hit's uv; the material itself when it has none. */
 pf_material_t pf_material_at(const pf_scene_t *scene, const pf_hit_t *hit);
 
 #endif

@@ -29,7 +29,8 @@
  *   map_Kd file: the diffuse albedo from that image (replacing Kd; path
  *   relative to the MTL's folder; options -s and -o scale and offset the uv,
  *   -clamp on clamps; the others are skipped). The image is read when the
- *   statement is, and a bad one is an error naming it and this file's line.
+ *   statement is, and a bad one is an error naming it and this file's line
+ *   (a missing one is a warning: Kd stands in).
  *   Other maps (map_Ks, map_Ns, map_d, map_Ka, bump, disp, decal, refl, norm,
  *   ...) are not rendered: one warning per kind at the end, with the count and
  *   the first line. Ignored without a word: Ka, sharpness.
@@ -338,9 +339,19 @@ static int s_map_kd(s_ctx_t *c, const char *p)
     int dirlen = slash && p[0] != '/' ? (int)(slash - c->path + 1) : 0;
     if (snprintf(path, sizeof path, "%.*s%.*s", dirlen, c->path, (int)n, p) >= (int)sizeof path)
         return pf_error_set(c->err, PF_EPARSE, c->path, c->line, "map_Kd: path too long");
-    int ref = pf_texture_load_image(c->scene, path, &t, PF_TEXENC_DEFAULT, c->path, c->line, c->err);
-    if (ref < 0)
+    pf_error_t e = { { 0 } };
+    int ref = pf_texture_load_image(c->scene, path, &t, PF_TEXENC_DEFAULT, c->path, c->line, &e);
+    if (ref == PF_EIO) {
+        /* A missing image, like a missing MTL file, is common in downloaded
+         * models and not worth failing the scene over. */
+        pf_warn("%s; Kd stands in", e.msg);
+        return PF_OK;
+    }
+    if (ref < 0) {
+        if (c->err)
+            *c->err = e;
         return ref;
+    }
     c->cur.kd_tex = (uint32_t)ref;
     return PF_OK;
 }

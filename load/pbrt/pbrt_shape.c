@@ -192,8 +192,8 @@ static void s_fill(pf_mesh_t *m, const double *P, const double *N, size_t n)
     }
 }
 
-/* Reads P, N and uv of a mesh shape: P required (at least min points), N
- * as many as P when given; uv is read and left for the textures step. */
+/* Reads P and N of a mesh shape: P required (at least min points), N as
+ * many as P when given; uv is marked used (s_uvs reads a trianglemesh's). */
 static int s_points(pf_pbrt_t *c, pf_pbrt_params_t *ps, pf_pbrt_loc_t loc, const char *what, const double **P,
                     size_t *np, const double **N)
 {
@@ -210,6 +210,24 @@ static int s_points(pf_pbrt_t *c, pf_pbrt_params_t *ps, pf_pbrt_loc_t loc, const
         rc = pf_pbrt_error_line(c, PF_ERANGE, loc, "%s: more than 2^32 - 1 points", what);
     pf_pbrt_param(ps, "uv");
     return rc;
+}
+
+/* A trianglemesh's "point2 uv" (or pbrt-v3's "float uv"): 2 per point,
+ * into a new array in *out (NULL when absent). */
+static int s_uvs(pf_pbrt_t *c, pf_pbrt_params_t *ps, size_t np, const char *what, float **out)
+{
+    *out = NULL;
+    pf_pbrt_param_t *p = pf_pbrt_param(ps, "uv");
+    if (!p)
+        return PF_OK;
+    if (p->nstr || p->nnum != 2 * np)
+        return pf_pbrt_error_line(c, PF_EPARSE, p->loc, "%s: %zu uv values for %zu points (2 each)", what, p->nnum,
+                                  np);
+    if (!(*out = malloc((np ? 2 * np : 1) * sizeof **out)))
+        return pf_pbrt_error_line(c, PF_ENOMEM, p->loc, "out of memory");
+    for (size_t i = 0; i < 2 * np; i++)
+        (*out)[i] = isfinite(p->num[i]) ? (float)p->num[i] : 0.0f;
+    return PF_OK;
 }
 
 /* trianglemesh and loopsubdiv (its control mesh). */
@@ -232,14 +250,19 @@ static int s_trianglemesh(pf_pbrt_t *c, pf_pbrt_params_t *ps, int area, pf_pbrt_
                           "loopsubdiv: the control mesh is rendered without subdivision");
     }
     pf_mesh_t m;
+    float *uv = NULL;
     size_t nt = idx ? ni / 3 : 1;
+    if (rc == PF_OK && type[0] == 't')
+        rc = s_uvs(c, ps, np, type, &uv);
     if (rc == PF_OK)
         rc = s_mesh_alloc(c, loc, np, nt, N != NULL, &m);
     if (rc) {
         free(idx);
+        free(uv);
         return rc;
     }
     s_fill(&m, P, N, np);
+    m.uv = uv;
     for (size_t i = 0; i < 3 * nt; i++)
         m.idx[i] = idx ? idx[i] : (uint32_t)i;
     free(idx);
@@ -539,6 +562,13 @@ static int s_instance_mesh(pf_pbrt_t *c, const pf_mesh_t *src, const char *obj, 
     memcpy(d.pos, src->pos, src->nverts * sizeof *d.pos);
     if (src->nrm)
         memcpy(d.nrm, src->nrm, src->nverts * sizeof *d.nrm);
+    if (src->uv) {
+        if (!(d.uv = malloc((src->nverts ? 2 * src->nverts : 1) * sizeof *d.uv))) {
+            pf_mesh_free(&d);
+            return pf_pbrt_error_line(c, PF_ENOMEM, loc, "out of memory");
+        }
+        memcpy(d.uv, src->uv, 2 * src->nverts * sizeof *d.uv);
+    }
     memcpy(d.idx, src->idx, 3 * src->ntris * sizeof *d.idx);
     memcpy(d.mat, src->mat, src->ntris * sizeof *d.mat);
     snprintf(d.name, sizeof d.name, "%.30s/%.30s", obj, src->name);
