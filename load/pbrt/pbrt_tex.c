@@ -3,7 +3,9 @@
  * linear or gamma g (as sRGB, warned), scale, invert, wrap repeat, clamp or
  * black; filter and maxanisotropy read and ignored: lookups are bilinear),
  * checkerboard (2D: tex1, tex2), scale (tex, scale), mix (tex1, tex2,
- * amount) and constant (value) as operands; every class with the "uv"
+ * amount) and constant (value) as operands; an image file that cannot be
+ * opened is a warning (the material's constant stands in), one that is not
+ * a readable image an error naming it and the Texture's file:line; every class with the "uv"
  * mapping and its uscale, vscale, udelta, vdelta. Operands are constants or
  * other textures, made the same way. The classes not rendered (bilerp,
  * dots, fbm, marble, ptex, windy, wrinkled, directionmix, 3D checkerboard,
@@ -70,7 +72,7 @@ static int s_mapping(pf_pbrt_t *c, pf_pbrt_tex_t *t, pf_texture_t *x, int *ok)
     return rc;
 }
 
-static int s_imagemap(pf_pbrt_t *c, pf_pbrt_tex_t *t, pf_texture_t *x, uint32_t *ref)
+static int s_imagemap(pf_pbrt_t *c, pf_pbrt_tex_t *t, pf_texture_t *x, uint32_t *ref, int *ok)
 {
     const char *file, *enc, *wrap, *filter;
     double scale, aniso;
@@ -112,9 +114,17 @@ static int s_imagemap(pf_pbrt_t *c, pf_pbrt_tex_t *t, pf_texture_t *x, uint32_t 
     char path[4096];
     if ((rc = pf_pbrt_resolve(c, t->loc, file, 0, path, sizeof path)))
         return rc;
-    int r = pf_texture_load_image(c->scene, path, x, e, pf_pbrt_file_name(c, t->loc), t->loc.line, c->err);
-    if (r < 0)
+    pf_error_t ierr = { { 0 } };
+    int r = pf_texture_load_image(c->scene, path, x, e, pf_pbrt_file_name(c, t->loc), t->loc.line, &ierr);
+    if (r == PF_EIO) { /* missing: as in MTL, a warning, and the caller's constant */
+        *ok = 0;
+        return pf_pbrt_warn(c, t->loc, "missing texture image (constant stands in)", "%s", ierr.msg);
+    }
+    if (r < 0) {
+        if (c->err)
+            *c->err = ierr;
         return r;
+    }
     *ref = (uint32_t)r;
     return PF_OK;
 }
@@ -171,7 +181,7 @@ static int s_make(pf_pbrt_t *c, pf_pbrt_tex_t *t, uint32_t *ref)
         }
     } else if (rc == PF_OK && !strcmp(cls, "imagemap")) {
         if (ok)
-            rc = s_imagemap(c, t, &x, ref);
+            rc = s_imagemap(c, t, &x, ref, &ok);
     } else {
         ok = 0;
     }
