@@ -238,6 +238,20 @@ static void s_test_bad_images(void)
     fclose(f);
     s_bad_image("wide.png", "PNG claiming 20000 x 8", "at most 16384 per side");
     s_bad_image("missing.png", "missing file", NULL);
+    /* pbrt: the error names the image and the Texture's file:line */
+    s_write("badimg.pbrt", "LookAt 0 10 0  0 0 0  0 0 -1\nCamera \"perspective\" \"float fov\" 10\nWorldBegin\n"
+                           "LightSource \"infinite\" \"rgb L\" [1 1 1]\n"
+                           "Texture \"t\" \"spectrum\" \"imagemap\" \"string filename\" \"text.png\"\n"
+                           "Material \"diffuse\" \"texture reflectance\" \"t\"\n"
+                           "Shape \"trianglemesh\" \"point3 P\" [0 0 0 1 0 0 1 0 -1] \"integer indices\" [0 1 2]\n");
+    s_path(p, sizeof p, "badimg.pbrt");
+    pf_error_t err = { { 0 } };
+    pf_scene_t *sc = pf_scene_load(p, &err);
+    CHECK(sc == NULL && strstr(err.msg, "badimg.pbrt:5:") && strstr(err.msg, "text.png") &&
+              strstr(err.msg, "not an image"),
+          "pbrt bad image: '%s'", err.msg);
+    printf("pbrt imagemap of a text file: %s\n", err.msg);
+    pf_scene_destroy(&sc);
 }
 
 /* The textured quad scene of the render test, from OBJ + MTL + PNG. */
