@@ -11,10 +11,10 @@
  *   u32 nmats,    nmats x   { str name, u8 type, vec3 kd, vec3 ks, f32 ns, vec3 kt, f32 ior, vec3 le,
  *                             vec3 eta, vec3 k, f32 alpha, u32 kd_tex }   (version 4: eta, k, alpha;
  *                             version 5: type 4, the thin dielectric; version 7: kd_tex)
- *   u32 nmeshes,  nmeshes x { str name, u64 nverts, u64 ntris, u8 has_normals, u8 has_uv,
+ *   u32 nmeshes,  nmeshes x { str name, u64 nverts, u64 ntris, u8 has_normals, u8 has_uv, u32 alpha_tex,
  *                             nverts x vec3 pos, (has_normals) nverts x vec3 nrm,
  *                             (has_uv) nverts x 2 f32 uv, ntris x 3 u32 idx, ntris x u32 mat }
- *                             (version 7: has_uv, uv)
+ *                             (version 7: has_uv, alpha_tex, uv)
  *   u32 nspheres, nspheres x { vec3 center, f32 radius, u32 mat }
  *   u32 nlights,  nlights x  { u8 type, vec3 pos, vec3 intensity, vec3 dir, f32 cos_inner, f32 cos_outer }
  *                             (version 6: types 2 and 3, the distant and infinite lights)
@@ -47,7 +47,7 @@
 
 /* The smallest encoded size of each repeated item, for the count checks. */
 #define S_MIN_MATERIAL (2 + 1 + 22 * 4)
-#define S_MIN_MESH (2 + 8 + 8 + 2)
+#define S_MIN_MESH (2 + 8 + 8 + 2 + 4)
 #define S_MIN_TEXTURE (2 + 1 + 4 * 4 + 3 * 16 + 2 + 4 + 2 + 8)
 #define S_VERTEX 12
 #define S_TRIANGLE 16
@@ -156,6 +156,7 @@ int pf_sceneblob_write(const pf_scene_t *scene, pf_buf_t *out)
         W(pf_wr_u64(out, mesh->ntris));
         W(pf_wr_u8(out, mesh->nrm ? 1 : 0));
         W(pf_wr_u8(out, mesh->uv ? 1 : 0));
+        W(pf_wr_u32(out, mesh->alpha_tex));
         for (size_t v = 0; v < mesh->nverts && rc == 0; v++)
             W(s_wr_vec3(out, mesh->pos[v]));
         for (size_t v = 0; mesh->nrm && v < mesh->nverts && rc == 0; v++)
@@ -376,6 +377,7 @@ static void s_read_mesh(s_in_t *in, uint32_t index, size_t nmats, pf_mesh_t *mes
     uint64_t ntris = s_u64(in, what, "ntris");
     uint8_t has_nrm = s_u8(in, what, "has_normals");
     uint8_t has_uv = s_u8(in, what, "has_uv");
+    mesh->alpha_tex = s_u32(in, what, "alpha_tex"); /* checked against the textures by finalize */
     if (in->status)
         return;
     if (has_nrm > 1 || has_uv > 1) {

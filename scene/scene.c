@@ -302,6 +302,9 @@ static int s_check_textures(pf_scene_t *self, pf_error_t *err)
                                 self->mats[i].name, (unsigned)self->mats[i].kd_tex, self->ntexs);
     for (size_t m = 0; m < self->nmeshes; m++) {
         pf_mesh_t *mesh = &self->meshes[m];
+        if (mesh->alpha_tex > self->ntexs)
+            return pf_error_set(err, PF_EPARSE, file, 0, "mesh '%s': alpha texture %u out of range (%zu textures)",
+                                mesh->name, (unsigned)mesh->alpha_tex, self->ntexs);
         for (size_t k = 0; mesh->uv && k < 2 * mesh->nverts; k++)
             if (!isfinite(mesh->uv[k]))
                 mesh->uv[k] = 0.0f;

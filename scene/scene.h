@@ -61,6 +61,7 @@ typedef struct pf_mesh {
     float *uv;       /* 2 * nverts, or NULL */
     uint32_t *idx;   /* 3 * ntris vertex indices */
     uint32_t *mat;   /* ntris material indices into pf_scene_t.mats */
+    uint32_t alpha_tex; /* 1 + texture index: an alpha cut-out (accel/alpha.c); 0: opaque */
 } pf_mesh_t;
 
 typedef enum {

@@ -237,6 +237,7 @@ typedef struct pf_pbrt {
     pf_pbrt_meshes_t shapes;
     uint64_t ntris; /* every triangle made so far, instances included */
     unsigned nshapes; /* for mesh names */
+    uint32_t shape_alpha; /* the Shape being read: its alpha texture ref (pbrt_tex.c), 0 opaque */
     pf_pbrt_warning_t *warnings;
     size_t nwarnings, cap_warnings;
 } pf_pbrt_t;
@@ -356,6 +357,10 @@ int pf_pbrt_material(pf_pbrt_t *c, const char *name, const char *type, pf_pbrt_p
  * (the caller reads the constant) or of a class not rendered (the caller
  * warns and uses its default). */
 int pf_pbrt_color_texture(pf_pbrt_t *c, pf_pbrt_param_t *p, uint32_t *ref);
+/* A shape's "alpha" (float or float texture) as a scene texture ref in *ref:
+ * 0 when absent or 1 (opaque), or when its texture class is not rendered
+ * (warned). */
+int pf_pbrt_alpha_texture(pf_pbrt_t *c, pf_pbrt_params_t *ps, uint32_t *ref);
 int pf_pbrt_area_light(pf_pbrt_t *c, const char *type, pf_pbrt_params_t *ps, pf_pbrt_loc_t loc);
 int pf_pbrt_light(pf_pbrt_t *c, const char *type, pf_pbrt_params_t *ps, pf_pbrt_loc_t loc);
 /* The pair index for the current material and the area light area (-1)

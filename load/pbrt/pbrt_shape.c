@@ -165,6 +165,7 @@ static int s_place(pf_pbrt_t *c, pf_mesh_t *mesh, int area, const char *name, pf
     if (rc == PF_OK && pair < 0)
         rc = pair;
     if (rc == PF_OK) {
+        mesh->alpha_tex = c->shape_alpha;
         for (size_t t = 0; t < mesh->ntris; t++)
             mesh->mat[t] = (uint32_t)pair;
         if (name)
@@ -421,6 +422,9 @@ static int s_sphere(pf_pbrt_t *c, pf_pbrt_params_t *ps, int area, pf_pbrt_loc_t 
                                     phimax, S_PHI_STEPS, S_THETA_STEPS)))
         return rc;
     if (full && area < 0 && !c->gs.reverse && c->cur_object < 0 && s_similarity(c->gs.ctm, &s)) {
+        if (c->shape_alpha &&
+            (rc = pf_pbrt_warn(c, loc, "alpha on a sphere (opaque)", "sphere: \"alpha\" is not rendered on spheres")))
+            return rc;
         int pair = pf_pbrt_pair(c, -1, pf_v3s(0.0f), loc);
         if (pair < 0)
             return pair;
@@ -500,14 +504,11 @@ static int s_cylinder(pf_pbrt_t *c, pf_pbrt_params_t *ps, int area, pf_pbrt_loc_
     return s_place(c, &m, area, name, loc);
 }
 
-/* "alpha": cut-outs are not rendered yet; the shape is opaque. */
+/* "alpha": the cut-out texture the shape's meshes get (s_place). */
 static int s_alpha_param(pf_pbrt_t *c, pf_pbrt_params_t *ps, const char *type)
 {
-    pf_pbrt_param_t *p = pf_pbrt_param(ps, "alpha");
-    if (!p || (p->type == PF_PBRT_P_FLOAT && p->nnum == 1 && p->num[0] == 1.0))
-        return PF_OK;
-    return pf_pbrt_warn(c, p->loc, "alpha (not rendered yet)", "Shape \"%s\": \"alpha\" is ignored; the shape is opaque",
-                        type);
+    (void)type;
+    return pf_pbrt_alpha_texture(c, ps, &c->shape_alpha);
 }
 
 int pf_pbrt_shape(pf_pbrt_t *c, const char *type, pf_pbrt_params_t *ps, pf_pbrt_loc_t loc)
@@ -562,6 +563,7 @@ static int s_instance_mesh(pf_pbrt_t *c, const pf_mesh_t *src, const char *obj, 
     memcpy(d.pos, src->pos, src->nverts * sizeof *d.pos);
     if (src->nrm)
         memcpy(d.nrm, src->nrm, src->nverts * sizeof *d.nrm);
+    d.alpha_tex = src->alpha_tex;
     if (src->uv) {
         if (!(d.uv = malloc((src->nverts ? 2 * src->nverts : 1) * sizeof *d.uv))) {
             pf_mesh_free(&d);

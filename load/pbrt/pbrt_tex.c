@@ -9,7 +9,9 @@
  * mapping and its uscale, vscale, udelta, vdelta. Operands are constants or
  * other textures, made the same way. The classes not rendered (bilerp,
  * dots, fbm, marble, ptex, windy, wrinkled, directionmix, 3D checkerboard,
- * other mappings) give ref 0, and the caller's "texture" warning. */
+ * other mappings) give ref 0, and the caller's "texture" warning. A shape's
+ * "alpha" (a float or a float texture) becomes its meshes' cut-out texture
+ * (accel/alpha.c). */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -207,4 +209,35 @@ int pf_pbrt_color_texture(pf_pbrt_t *c, pf_pbrt_param_t *p, uint32_t *ref)
     if ((rc = s_make(c, t, ref)) == PF_OK && *ref)
         p->used = 1;
     return rc;
+}
+
+int pf_pbrt_alpha_texture(pf_pbrt_t *c, pf_pbrt_params_t *ps, uint32_t *ref)
+{
+    *ref = 0;
+    pf_pbrt_param_t *p = pf_pbrt_param(ps, "alpha");
+    if (!p)
+        return PF_OK;
+    if (p->type == PF_PBRT_P_TEXTURE) {
+        if (p->nstr != 1)
+            return pf_pbrt_error(c, PF_EPARSE, p->loc, "texture parameter 'alpha' takes one texture name");
+        pf_pbrt_tex_t *t;
+        int rc = pf_pbrt_find_texture(c, p->str[0], 1, p->loc, &t);
+        if (rc == PF_OK)
+            rc = s_make(c, t, ref);
+        if (rc == PF_OK && !*ref)
+            rc = pf_pbrt_warn(c, p->loc, "alpha texture (opaque)",
+                              "\"alpha\" is the %s texture \"%s\", not rendered here: the shape is opaque", t->cls,
+                              p->str[0]);
+        return rc;
+    }
+    double a;
+    int rc = pf_pbrt_get_float(c, ps, "alpha", 1.0, &a);
+    if (rc || a >= 1.0)
+        return rc;
+    pf_texture_t x = pf_texture_constant("alpha", pf_v3s((float)a));
+    int r = pf_scene_add_texture(c->scene, &x);
+    if (r < 0)
+        return pf_pbrt_error(c, PF_ENOMEM, p->loc, "out of memory");
+    *ref = (uint32_t)r;
+    return PF_OK;
 }

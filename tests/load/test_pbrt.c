@@ -491,7 +491,7 @@ static void test_report(void)
     CHECK(s != NULL, "%s", err.msg);
     const char *kinds[] = { "Sampler (ignored)", "PixelFilter (ignored)", "ColorSpace (ignored)", "Option (ignored)",
                             "Attribute (ignored)", "MakeNamedMedium (ignored)", "MediumInterface (ignored)",
-                            "alpha (not rendered yet)", "displacement (ignored)" };
+                            "alpha on a sphere (opaque)", "displacement (ignored)" };
     for (size_t i = 0; i < sizeof kinds / sizeof *kinds; i++)
         CHECK(s_warned(&rep, kinds[i]) == 1, "%s", kinds[i]);
     CHECK(s_warned(&rep, "unused parameter \"float foo\"") == 2, "one kind per name, counted");

@@ -212,6 +212,8 @@ static const char *s_scene_diff(const pf_scene_t *a, const pf_scene_t *b)
             return "mesh positions";
         if (!x->nrm != !y->nrm || (x->nrm && memcmp(x->nrm, y->nrm, x->nverts * sizeof *x->nrm)))
             return "mesh normals";
+        if (x->alpha_tex != y->alpha_tex)
+            return "mesh alpha";
         if (!x->uv != !y->uv || (x->uv && memcmp(x->uv, y->uv, 2 * x->nverts * sizeof *x->uv)))
             return "mesh uvs";
         if (memcmp(x->idx, y->idx, 3 * x->ntris * sizeof *x->idx))
@@ -320,7 +322,7 @@ static s_offsets_t s_walk(const uint8_t *d)
         if (i == 0)
             o.mesh0_nverts = at, o.mesh0_ntris = at + 8, o.mesh0_has_nrm = at + 16, o.mesh0_has_uv = at + 17;
         int has = d[at + 16], has_uv = d[at + 17];
-        at += 18;
+        at += 22; /* and u32 alpha_tex */
         if (i == 0)
             o.mesh0_pos = at;
         at += nv * 12 * (has ? 2 : 1) + nv * 8 * (has_uv ? 1 : 0);

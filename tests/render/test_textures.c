@@ -7,7 +7,8 @@
  * uniform sky renders each checker square at albedo x sky radiance, where
  * the uvs put it; the same from pbrt-v4 scenes (a PLY with u, v under a
  * "checkerboard" texture, a trianglemesh with "point2 uv" under an
- * "imagemap"). Files are written to a temporary folder. */
+ * "imagemap"), and a quad cut out by an alpha checkerboard showing the sky
+ * through its holes. Files are written to a temporary folder. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -407,8 +408,35 @@ static void s_test_render_pbrt(const char *name, const char *shape, pf_vec3 a, p
     pf_scene_destroy(&sc);
 }
 
+/* A quad cut out by an alpha checkerboard (0 and 1) over the sky: the
+ * camera sees the quad's albedo 0.5 in two squares and the sky (1) through
+ * the holes. */
+static void s_test_render_alpha(void)
+{
+    s_write("alpha.pbrt",
+            "LookAt 0 10 0  0 0 0  0 0 -1\nCamera \"perspective\" \"float fov\" 10\nWorldBegin\n"
+            "LightSource \"infinite\" \"rgb L\" [1 1 1]\n"
+            "Texture \"holes\" \"float\" \"checkerboard\" \"float uscale\" 2 \"float vscale\" 2 \"float tex1\" 1 "
+            "\"float tex2\" 0\n"
+            "Material \"diffuse\" \"rgb reflectance\" [0.5 0.5 0.5]\n"
+            "Shape \"trianglemesh\" \"point3 P\" [-1 0 1  1 0 1  1 0 -1  -1 0 -1] \"integer indices\" [0 1 2 0 2 3] "
+            "\"point2 uv\" [0 0 1 0 1 1 0 1] \"texture alpha\" \"holes\"\n");
+    char p[512];
+    s_path(p, sizeof p, "alpha.pbrt");
+    pf_error_t err = { { 0 } };
+    pf_scene_t *sc = pf_scene_load(p, &err);
+    CHECK(sc != NULL && sc->nmeshes == 1 && sc->meshes[0].alpha_tex > 0, "alpha: %s", err.msg);
+    pf_image_t img;
+    if (sc && s_render(sc, 32, &img)) {
+        s_check_checker(&img, pf_v3s(0.5f), pf_v3s(1.0f), 0, "alpha cut-out");
+        pf_image_free(&img);
+    }
+    pf_scene_destroy(&sc);
+}
+
 static void s_test_render(void)
 {
+    s_test_render_alpha();
     s_test_render_obj();
     s_checker_png("checker.png");
     s_write("quad.ply", "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
