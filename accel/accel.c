@@ -3,6 +3,8 @@
  * query functions are called by every rendering thread concurrently. */
 #include "accel/accel.h"
 
+#include "accel/alpha.h"
+
 #include <embree3/rtcore.h>
 #include <float.h>
 #include <math.h>
@@ -95,6 +97,7 @@ pf_accel_t *pf_accel_create(const pf_scene_t *scene, pf_error_t *err)
         }
         for (size_t i = 0; i < 3 * mesh->ntris; i++)
             ib[i] = mesh->idx[i];
+        pf_alpha_attach(g, scene, m);
         rtcCommitGeometry(g);
         rtcAttachGeometryByID(self->rtc, g, (unsigned)m);
         rtcReleaseGeometry(g);

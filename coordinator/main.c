@@ -20,6 +20,7 @@
 #include "image/image.h"
 #include "load/load.h"
 #include "scene/scene.h"
+#include "scene/texture.h"
 
 #include <signal.h>
 #include <zmq.h>
@@ -462,8 +463,10 @@ static void s_plan(const pf_scene_t *scene, const s_render_args *a, const pf_set
     size_t ntris = 0;
     for (size_t i = 0; i < scene->nmeshes; i++)
         ntris += scene->meshes[i].ntris;
-    pf_info("scene %s: %zu triangles, %zu spheres, %zu materials, %zu point, spot, sun or sky lights (%.2f s to load)", a->path, ntris,
-            scene->nspheres, scene->nmats, scene->nlights, pf_now() - t0);
+    pf_info("scene %s: %zu triangles, %zu spheres, %zu materials, %zu point, spot, sun or sky lights, %zu textures "
+            "(%.1f MB of pixels) (%.2f s to load)",
+            a->path, ntris, scene->nspheres, scene->nmats, scene->nlights, scene->ntexs,
+            (double)pf_textures_bytes(scene) / (1024.0 * 1024.0), pf_now() - t0);
     if (time_limit > 0) {
         int render_threads;
         if (workers > 0)

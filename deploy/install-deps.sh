@@ -10,7 +10,7 @@
 #   --check  list what is missing, install nothing
 set -euo pipefail
 
-packages=(cmake make gcc pkg-config libzmq3-dev libpng-dev libembree-dev libcjson-dev zlib1g-dev libtinyexr-dev)
+packages=(cmake make gcc pkg-config libzmq3-dev libpng-dev libembree-dev libcjson-dev zlib1g-dev libtinyexr-dev libstb-dev)
 check_only=0
 for arg in "$@"; do
   case "$arg" in

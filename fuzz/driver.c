@@ -38,6 +38,7 @@ int pf_fuzz_msg(const uint8_t *data, size_t size);
 int pf_fuzz_sceneblob(const uint8_t *data, size_t size);
 int pf_fuzz_mapfile(const uint8_t *data, size_t size);
 int pf_fuzz_pfm(const uint8_t *data, size_t size);
+int pf_fuzz_teximage(const uint8_t *data, size_t size);
 
 static const struct {
     const char *name;
@@ -48,6 +49,7 @@ static const struct {
     { "pbrt", pf_fuzz_pbrt },
     { "msg", pf_fuzz_msg },         { "sceneblob", pf_fuzz_sceneblob },
     { "mapfile", pf_fuzz_mapfile }, { "pfm", pf_fuzz_pfm },
+    { "teximage", pf_fuzz_teximage },
 };
 #define S_NTARGETS (sizeof s_targets / sizeof s_targets[0])
 

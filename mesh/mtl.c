@@ -26,7 +26,14 @@
  *
  *   Ke gives le (emitted radiance, one-sided) for every type.
  *   Defaults when absent: Kd 0.8 (pf_material_default), Ks 0, Ke 0, Ns 1.
- *   Ignored without a word: Ka, map_*, bump, disp, decal, refl, sharpness.
+ *   map_Kd file: the diffuse albedo from that image (replacing Kd; path
+ *   relative to the MTL's folder; options -s and -o scale and offset the uv,
+ *   -clamp on clamps; the others are skipped). The image is read when the
+ *   statement is, and a bad one is an error naming it and this file's line
+ *   (a missing one is a warning: Kd stands in).
+ *   Other maps (map_Ks, map_Ns, map_d, map_Ka, bump, disp, decal, refl, norm,
+ *   ...) are not rendered: one warning per kind at the end, with the count and
+ *   the first line. Ignored without a word: Ka, sharpness.
  *   Other statements are skipped with one warning per keyword.
  *
  * Checks (errors name file:line): every number must parse and be finite.
@@ -47,6 +54,7 @@
 
 #include "base/log.h"
 #include "base/reserve.h"
+#include "mesh/texload.h"
 #include "mesh/text.h"
 
 /* One material as written, before mapping. */
@@ -57,6 +65,7 @@ typedef struct s_mtl {
     float ns, ni, d;
     int has_kd, has_ks, has_ke, has_tf, has_ns, has_ni, has_d;
     int illum; /* -1 when absent */
+    uint32_t kd_tex; /* map_Kd's texture ref, or 0 */
 } s_mtl_t;
 
 #define S_MAX_WARNED 32
@@ -71,6 +80,13 @@ typedef struct s_ctx {
     int have;    /* cur holds one (a newmtl was read) */
     pf_material_t *done; /* mapped materials, committed when the whole file parsed */
     size_t ndone, cap_done;
+    /* Maps not rendered, by kind: how many and the first line. */
+    struct {
+        char kw[16];
+        unsigned count;
+        int line;
+    } maps[S_MAX_WARNED];
+    int nmaps;
 } s_ctx_t;
 
 static int s_bad_number(s_ctx_t *c, const char *p)
@@ -185,6 +201,8 @@ static int s_finish(s_ctx_t *c, const s_mtl_t *s)
             pf_warn("%s:%d: material '%s': transparency (d %g) is ignored for illum 0-2; the surface is opaque",
                     c->path, s->line, s->name, s->d);
     }
+    if (s->kd_tex && m.type == PF_MAT_DIFFUSE)
+        m.kd_tex = s->kd_tex;
     if (pf_reserve((void **)&c->done, &c->cap_done, c->ndone + 1, sizeof *c->done))
         return pf_error_set(c->err, PF_ENOMEM, c->path, s->line, "out of memory");
     c->done[c->ndone++] = m;
@@ -227,6 +245,117 @@ static int s_newmtl(s_ctx_t *c, const char *p)
     return PF_OK;
 }
 
+/* Counts a map statement that is not rendered, for the warnings at the end. */
+static void s_map_unused(s_ctx_t *c, const char *kw, int kwlen)
+{
+    char k[16];
+    snprintf(k, sizeof k, "%.*s", kwlen, kw);
+    int i = 0;
+    while (i < c->nmaps && strcasecmp(c->maps[i].kw, k) != 0)
+        i++;
+    if (i == c->nmaps) {
+        if (c->nmaps == S_MAX_WARNED)
+            i--; /* the table is full: counted with the last kind */
+        else {
+            c->nmaps++;
+            memcpy(c->maps[i].kw, k, sizeof k);
+            c->maps[i].line = c->line;
+        }
+    }
+    c->maps[i].count++;
+}
+
+/* The options of a map statement this reader knows and how many values
+ * each takes at most (-o, -s and -t take 1 to 3 numbers). */
+static int s_map_option(const char *opt, size_t n)
+{
+    static const struct {
+        const char *name;
+        int nargs;
+    } opts[] = { { "-blendu", 1 }, { "-blendv", 1 }, { "-bm", 1 },    { "-boost", 1 }, { "-cc", 1 },
+                 { "-clamp", 1 },  { "-imfchan", 1 }, { "-mm", 2 },   { "-o", 3 },     { "-s", 3 },
+                 { "-t", 3 },      { "-texres", 1 }, { "-type", 1 } };
+    for (size_t i = 0; i < sizeof opts / sizeof *opts; i++)
+        if (strlen(opts[i].name) == n && strncmp(opts[i].name, opt, n) == 0)
+            return opts[i].nargs;
+    return -1;
+}
+
+/* map_Kd [options] file: reads the image into a scene texture. */
+static int s_map_kd(s_ctx_t *c, const char *p)
+{
+    pf_texture_t t = pf_texture_constant(c->cur.name, pf_v3s(0.0f));
+    for (;;) {
+        p = pf_text_skip_ws(p);
+        if (*p != '-')
+            break;
+        const char *opt = p;
+        while (!pf_text_is_delim(*p))
+            p++;
+        int nargs = s_map_option(opt, (size_t)(p - opt));
+        if (nargs < 0)
+            return pf_error_set(c->err, PF_EPARSE, c->path, c->line, "map_Kd: unknown option '%.*s'",
+                                (int)(p - opt), opt);
+        if ((size_t)(p - opt) == 6 && strncmp(opt, "-clamp", 6) == 0) {
+            p = pf_text_skip_ws(p);
+            if (!strncmp(p, "on", 2) && pf_text_is_delim(p[2]))
+                t.wrap = PF_WRAP_CLAMP;
+            while (!pf_text_is_delim(*p))
+                p++;
+            continue;
+        }
+        float v[3] = { 0, 0, 0 };
+        int got = 0;
+        for (; got < nargs; got++) {
+            const char *q = pf_text_skip_ws(p);
+            char *end;
+            float x = strtof(q, &end);
+            if (end == q || !pf_text_is_delim(*end))
+                break;
+            v[got] = x;
+            p = end;
+        }
+        if ((size_t)(p - opt) >= 2 && opt[1] == 's' && pf_text_is_delim(opt[2]) && got >= 1) {
+            t.su = v[0];
+            t.sv = got >= 2 ? v[1] : 1.0f;
+        } else if (opt[1] == 'o' && pf_text_is_delim(opt[2]) && got >= 1) {
+            t.du = v[0];
+            t.dv = v[1];
+        } else {
+            /* -blendu, -bm, -mm, ...: not rendered, skipped (their words too). */
+            while (got == 0 && nargs-- > 0) {
+                p = pf_text_skip_ws(p);
+                while (!pf_text_is_delim(*p))
+                    p++;
+            }
+        }
+    }
+    size_t n;
+    p = pf_text_rest(p, &n);
+    if (n == 0)
+        return pf_error_set(c->err, PF_EPARSE, c->path, c->line, "map_Kd needs a file name");
+    char path[2048];
+    const char *slash = strrchr(c->path, '/');
+    int dirlen = slash && p[0] != '/' ? (int)(slash - c->path + 1) : 0;
+    if (snprintf(path, sizeof path, "%.*s%.*s", dirlen, c->path, (int)n, p) >= (int)sizeof path)
+        return pf_error_set(c->err, PF_EPARSE, c->path, c->line, "map_Kd: path too long");
+    pf_error_t e = { { 0 } };
+    int ref = pf_texture_load_image(c->scene, path, &t, PF_TEXENC_DEFAULT, c->path, c->line, &e);
+    if (ref == PF_EIO) {
+        /* A missing image, like a missing MTL file, is common in downloaded
+         * models and not worth failing the scene over. */
+        pf_warn("%s; Kd stands in", e.msg);
+        return PF_OK;
+    }
+    if (ref < 0) {
+        if (c->err)
+            *c->err = e;
+        return ref;
+    }
+    c->cur.kd_tex = (uint32_t)ref;
+    return PF_OK;
+}
+
 /* Handles one statement (keyword kw of length kwlen, values at p) for
  * pf_text_read_statements; arg is the s_ctx_t. */
 static int s_statement(void *arg, const char *kw, int kwlen, const char *p)
@@ -236,8 +365,17 @@ static int s_statement(void *arg, const char *kw, int kwlen, const char *p)
 #define S_KW(s) (kwlen == (int)sizeof(s) - 1 && strncasecmp(kw, s, sizeof(s) - 1) == 0)
     if (S_KW("newmtl"))
         return s_newmtl(c, p);
-    if (S_KW("Ka") || (kwlen > 4 && strncasecmp(kw, "map_", 4) == 0) || S_KW("bump") || S_KW("disp") ||
-        S_KW("decal") || S_KW("refl") || S_KW("sharpness"))
+    if (S_KW("map_Kd")) {
+        if (!c->have)
+            return pf_error_set(c->err, PF_EPARSE, c->path, c->line, "map_Kd before any newmtl");
+        return s_map_kd(c, p);
+    }
+    if ((kwlen > 4 && strncasecmp(kw, "map_", 4) == 0) || S_KW("bump") || S_KW("disp") || S_KW("decal") ||
+        S_KW("refl") || S_KW("norm")) {
+        s_map_unused(c, kw, kwlen);
+        return PF_OK;
+    }
+    if (S_KW("Ka") || S_KW("sharpness"))
         return PF_OK;
     int known = S_KW("Kd") || S_KW("Ks") || S_KW("Ke") || S_KW("Tf") || S_KW("Ns") || S_KW("Ni") || S_KW("d") ||
                 S_KW("Tr") || S_KW("illum");
@@ -311,6 +449,9 @@ int pf_mtl_load(pf_scene_t *scene, const char *path, pf_error_t *err)
         rc = s_finish(&c, &c.cur);
     if (rc == PF_OK)
         rc = s_commit(&c); /* nothing reaches the scene from a file with an error */
+    for (int i = 0; rc == PF_OK && i < c.nmaps; i++)
+        pf_warn("%s:%d: %s is not rendered (%u statement%s in this file; only map_Kd is)", path, c.maps[i].line,
+                c.maps[i].kw, c.maps[i].count, c.maps[i].count == 1 ? "" : "s");
     free(c.done);
     fclose(f);
     return rc;

@@ -6,22 +6,24 @@
  * the scene.
  *
  * Supported: v (x y z, a fourth w or trailing colour values are ignored), vt
- * (checked, then ignored), vn, f with v, v/vt, v//vn and v/vt/vn corners and
+ * (u and v; a w is ignored), vn, f with v, v/vt, v//vn and v/vt/vn corners and
  * positive or negative (relative) indices, polygons fan-triangulated as
  * (0, i, i+1), usemtl, mtllib (paths relative to the OBJ's folder, several
  * per line, no spaces inside a name), g and o (each starts a new mesh), s
  * (ignored), comments, blank lines, CRLF, tabs. Other statements (l, p, curv,
  * ...) are skipped with one warning per keyword.
  *
- * Vertices. OBJ indexes positions and normals separately; a mesh vertex is
- * one distinct (position, normal) pair, found through per-position chains
+ * Vertices. OBJ indexes positions, uvs and normals separately; a mesh vertex
+ * is one distinct (position, normal, uv) triple, found through per-position chains
  * when the mesh ends, so pos and nrm have one entry per vertex. In a mesh
  * where some faces have normals and others do not (the alternative, split
  * meshes, was not chosen), the corners without one get their face's
  * geometric normal (Newell's normal of the polygon, oriented by the winding
  * as stored, so it agrees with the triangle's face normal); those corners
  * are shared only within their face, which keeps flat faces flat. A mesh
- * without any normals gets nrm = NULL and shares vertices by position.
+ * without any normals gets nrm = NULL and shares vertices by position. Texture
+ * coordinates likewise: a mesh with a vt on any corner gets uv, (0, 0) on the
+ * corners without; one without gets uv = NULL.
  *
  * Materials. Each triangle carries the material of the last usemtl before
  * it. Names resolve when the file ends, so an mtllib after its usemtl still
@@ -53,6 +55,7 @@
 #define S_NO_NRM UINT32_MAX
 #define S_FACE_NRM 0x80000000u
 #define S_NONE UINT32_MAX /* end of a vertex chain */
+#define S_NO_UV UINT32_MAX
 #define S_MAX_WARNED 16
 
 typedef struct s_slot {
@@ -76,19 +79,23 @@ typedef struct s_obj {
     size_t npos, cap_pos;
     pf_vec3 *nrm;
     size_t nnrm, cap_nrm;
-    size_t ntex;
+    float *tex; /* 2 per vt */
+    size_t ntex, cap_tex;
     /* The mesh being read: 3 corners per triangle, each (normal ref << 32 | position). */
     char name[PF_NAME_MAX];
     uint64_t *corner;
     size_t ncorner, cap_corner;
+    uint32_t *cuv; /* each corner's vt index, or S_NO_UV */
+    size_t cap_cuv;
+    int has_uv;
     uint32_t *tmat; /* material slot per triangle */
     size_t ntri, cap_tmat;
     pf_vec3 *fnrm; /* face normals for corners without vn */
     size_t nfnrm, cap_fnrm;
     int has_nrm;
     /* Scratch for one face. */
-    uint32_t *fv, *fn;
-    size_t cap_fv, cap_fn;
+    uint32_t *fv, *fn, *ft;
+    size_t cap_fv, cap_fn, cap_ft;
     /* usemtl names; slot 0 is "no usemtl". */
     s_slot_t *slots;
     size_t nslots, cap_slots;
@@ -96,8 +103,8 @@ typedef struct s_obj {
     /* Vertex sharing when a mesh ends: head[position] starts a chain of the
      * mesh's vertices at that position (S_NONE when none), linked by vnext;
      * vref is each vertex's normal reference. */
-    uint32_t *head, *vnext, *vref;
-    size_t nhead, cap_head, cap_vnext, cap_vref;
+    uint32_t *head, *vnext, *vref, *vuv;
+    size_t nhead, cap_head, cap_vnext, cap_vref, cap_vuv;
     /* Finished meshes; mat[] still holds slot numbers. */
     pf_mesh_t *meshes;
     size_t nmeshes, cap_meshes;
@@ -185,7 +192,7 @@ static int s_face(s_obj_t *o, const char *p)
         if (pf_text_is_eol(*p))
             break;
         const char *corner = p;
-        uint32_t vi, ti, ni = S_NO_NRM;
+        uint32_t vi, ti = S_NO_UV, ni = S_NO_NRM;
         int rc = s_index(o, &p, o->npos, "vertex", corner, &vi);
         if (!rc && *p == '/') {
             p++;
@@ -203,10 +210,13 @@ static int s_face(s_obj_t *o, const char *p)
             return pf_error_set(o->err, PF_EPARSE, o->path, o->line, "malformed face vertex '%.*s'",
                                 pf_text_show(corner), corner);
         if ((n >= o->cap_fv && S_RESERVE(o, o->fv, o->cap_fv, n + 1)) ||
-            (n >= o->cap_fn && S_RESERVE(o, o->fn, o->cap_fn, n + 1)))
+            (n >= o->cap_fn && S_RESERVE(o, o->fn, o->cap_fn, n + 1)) ||
+            (n >= o->cap_ft && S_RESERVE(o, o->ft, o->cap_ft, n + 1)))
             return s_nomem(o);
         o->fv[n] = vi;
         o->fn[n] = ni;
+        o->ft[n] = ti;
+        o->has_uv |= ti != S_NO_UV;
         missing |= ni == S_NO_NRM;
         o->has_nrm |= ni != S_NO_NRM;
         n++;
@@ -218,6 +228,7 @@ static int s_face(s_obj_t *o, const char *p)
         return pf_error_set(o->err, PF_EPARSE, o->path, o->line, "mesh '%s' is too large (over 2^32 corners)",
                             o->name);
     if (S_RESERVE(o, o->corner, o->cap_corner, o->ncorner + 3 * nt) ||
+        S_RESERVE(o, o->cuv, o->cap_cuv, o->ncorner + 3 * nt) ||
         S_RESERVE(o, o->tmat, o->cap_tmat, o->ntri + nt))
         return s_nomem(o);
     if (missing) {
@@ -237,8 +248,10 @@ static int s_face(s_obj_t *o, const char *p)
             c[1] = i + 1;
             c[2] = i;
         }
-        for (int k = 0; k < 3; k++)
+        for (int k = 0; k < 3; k++) {
+            o->cuv[o->ncorner] = o->ft[c[k]];
             o->corner[o->ncorner++] = (uint64_t)o->fn[c[k]] << 32 | o->fv[c[k]];
+        }
         o->tmat[o->ntri++] = o->cur_slot;
     }
     o->slots[o->cur_slot].used = 1;
@@ -249,6 +262,7 @@ static void s_reset_mesh(s_obj_t *o)
 {
     o->ncorner = o->ntri = o->nfnrm = 0;
     o->has_nrm = 0;
+    o->has_uv = 0;
 }
 
 /* Turns the mesh being read into a pf_mesh_t with one vertex per distinct
@@ -266,9 +280,11 @@ static int s_flush(s_obj_t *o)
     snprintf(m.name, sizeof m.name, "%s", o->name);
     m.pos = malloc(nc * sizeof *m.pos);
     m.nrm = o->has_nrm ? malloc(nc * sizeof *m.nrm) : NULL;
+    m.uv = o->has_uv ? malloc(2 * nc * sizeof *m.uv) : NULL;
     m.idx = malloc(nc * sizeof *m.idx);
-    if (!m.pos || !m.idx || (o->has_nrm && !m.nrm) || S_RESERVE(o, o->meshes, o->cap_meshes, o->nmeshes + 1) ||
-        S_RESERVE(o, o->vnext, o->cap_vnext, nc) || S_RESERVE(o, o->vref, o->cap_vref, nc)) {
+    if (!m.pos || !m.idx || (o->has_nrm && !m.nrm) || (o->has_uv && !m.uv) ||
+        S_RESERVE(o, o->meshes, o->cap_meshes, o->nmeshes + 1) || S_RESERVE(o, o->vnext, o->cap_vnext, nc) ||
+        S_RESERVE(o, o->vref, o->cap_vref, nc) || S_RESERVE(o, o->vuv, o->cap_vuv, nc)) {
         rc = s_nomem(o);
         goto fail;
     }
@@ -287,12 +303,18 @@ static int s_flush(s_obj_t *o)
     for (size_t c = 0; c < nc; c++) {
         uint32_t pi = (uint32_t)o->corner[c];
         uint32_t r = o->has_nrm ? (uint32_t)(o->corner[c] >> 32) : 0;
+        uint32_t t = o->has_uv ? o->cuv[c] : S_NO_UV;
         uint32_t v = o->head[pi];
-        while (v != S_NONE && o->vref[v] != r)
+        while (v != S_NONE && (o->vref[v] != r || o->vuv[v] != t))
             v = o->vnext[v];
         if (v == S_NONE) {
             v = nv++;
             o->vref[v] = r;
+            o->vuv[v] = t;
+            if (m.uv) {
+                m.uv[2 * v] = t == S_NO_UV ? 0.0f : o->tex[2 * (size_t)t];
+                m.uv[2 * v + 1] = t == S_NO_UV ? 0.0f : o->tex[2 * (size_t)t + 1];
+            }
             o->vnext[v] = o->head[pi];
             o->head[pi] = v;
             m.pos[v] = o->pos[pi];
@@ -312,6 +334,10 @@ static int s_flush(s_obj_t *o)
     if (m.nrm) {
         p = realloc(m.nrm, nv * sizeof *m.nrm);
         m.nrm = p ? p : m.nrm;
+    }
+    if (m.uv) {
+        p = realloc(m.uv, 2 * (size_t)nv * sizeof *m.uv);
+        m.uv = p ? p : m.uv;
     }
     p = realloc(o->tmat, o->ntri * sizeof *o->tmat);
     m.mat = p ? p : o->tmat;
@@ -421,9 +447,19 @@ static int s_statement(void *arg, const char *kw, int kwlen, const char *p)
         return PF_OK;
     }
     if (S_KW("vt")) {
-        /* u [v [w]]: checked so a broken file is noticed, otherwise unused. */
+        /* u [v [w]]: v defaults to 0, w is ignored. */
         if ((rc = s_floats(o, &p, 1, v, "vt")))
             return rc;
+        const char *q = pf_text_skip_ws(p);
+        v[1] = 0.0f;
+        if (!pf_text_is_eol(*q) && (rc = s_floats(o, &p, 1, v + 1, "vt")))
+            return rc;
+        if (o->ntex >= S_NO_UV - 1)
+            return pf_error_set(o->err, PF_EPARSE, o->path, o->line, "too many texture coordinates (over 2^32)");
+        if (S_RESERVE(o, o->tex, o->cap_tex, 2 * o->ntex + 2))
+            return s_nomem(o);
+        o->tex[2 * o->ntex] = v[0];
+        o->tex[2 * o->ntex + 1] = v[1];
         o->ntex++;
         return PF_OK;
     }
@@ -534,6 +570,10 @@ int pf_obj_load(pf_scene_t *scene, const char *path, const pf_xform_t *xf, int m
     free(o->meshes);
     free(o->pos);
     free(o->nrm);
+    free(o->tex);
+    free(o->cuv);
+    free(o->ft);
+    free(o->vuv);
     free(o->corner);
     free(o->tmat);
     free(o->fnrm);

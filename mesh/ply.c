@@ -5,7 +5,9 @@
  * The header is read line by line; the body element by element in header
  * order through a small buffered reader that checks the bytes it needs
  * before every read. What is used: the first element named "vertex" (scalar
- * x, y, z of any numeric type, and nx, ny, nz when all three are present)
+ * x, y, z of any numeric type, nx, ny, nz when all three are present, and
+ * texture coordinates u, v, also spelt s, t, texture_u, texture_v,
+ * texture_s, texture_t, when both are present)
  * and the first element named "face" (a list named vertex_indices or
  * vertex_index; polygons are fan-triangulated as (0, i, i+1)). Every other
  * element and property is read past, lists included.
@@ -57,7 +59,7 @@ static const double s_lo[] = { -128, 0, -32768, 0, -2147483648.0, 0 };
 static const double s_hi[] = { 127, 255, 32767, 65535, 2147483647.0, 4294967295.0 };
 
 /* What a property means to the loader. */
-enum { S_ROLE_NONE, S_X, S_Y, S_Z, S_NX, S_NY, S_NZ, S_INDICES };
+enum { S_ROLE_NONE, S_X, S_Y, S_Z, S_NX, S_NY, S_NZ, S_U, S_V, S_INDICES };
 
 typedef struct s_prop {
     int type;       /* scalar type, or a list's item type */
@@ -288,10 +290,14 @@ static int s_parse_header(s_ply_t *p)
             }
             s_elem_t *e = &p->elems[p->nelems - 1];
             static const char *coords[] = { "x", "y", "z", "nx", "ny", "nz" };
+            static const char *uvs[] = { "u", "v", "s", "t", "texture_u", "texture_v", "texture_s", "texture_t" };
             if (strcmp(e->name, "vertex") == 0) {
                 for (int i = 0; i < 6; i++)
                     if (strcmp(name, coords[i]) == 0)
                         q.role = S_X + i;
+                for (int i = 0; i < 8; i++)
+                    if (strcmp(name, uvs[i]) == 0)
+                        q.role = S_U + (i & 1);
                 if (q.role && q.list)
                     return s_header_err(p, "vertex property '%s' must not be a list", name);
             } else if (strcmp(e->name, "face") == 0 &&
@@ -457,6 +463,7 @@ static int s_skip_bytes(s_ply_t *p, uint64_t n, unsigned sz)
 /* The state of the mesh being built. */
 typedef struct s_mesh_build {
     pf_vec3 *pos, *nrm;
+    float *uv;
     uint32_t nverts;
     uint32_t *idx;
     size_t ntris, cap_idx;
@@ -506,7 +513,7 @@ static int s_read_body(s_ply_t *p, s_build_t *b, const s_elem_t *ve, const s_ele
         const s_prop_t *props = &p->props[e->first];
         int is_vertex = e == ve, is_face = e == fe;
         for (uint64_t i = 0; i < e->count; i++) {
-            double c[7] = { 0 };
+            double c[S_INDICES] = { 0 };
             uint64_t start = s_offset(p);
             for (size_t k = 0; k < e->n; k++) {
                 const s_prop_t *q = &props[k];
@@ -551,6 +558,12 @@ static int s_read_body(s_ply_t *p, s_build_t *b, const s_elem_t *ve, const s_ele
                 if (!pf_is_finite3(n))
                     return s_body_err(p, "vertex %" PRIu64 " has a non-finite normal", i);
                 b->nrm[i] = n;
+            }
+            if (b->uv) {
+                b->uv[2 * i] = (float)c[S_U];
+                b->uv[2 * i + 1] = (float)c[S_V];
+                if (!isfinite(b->uv[2 * i]) || !isfinite(b->uv[2 * i + 1]))
+                    return s_body_err(p, "vertex %" PRIu64 " has a non-finite texture coordinate", i);
             }
         }
     }
@@ -744,7 +757,9 @@ int pf_ply_read(const char *path, const pf_xform_t *xf, uint32_t mat, pf_mesh_t 
     /* The counts fit the file, so these sizes are bounded by its size. */
     b.pos = malloc((b.nverts ? b.nverts : 1) * sizeof *b.pos);
     b.nrm = normals ? malloc((b.nverts ? b.nverts : 1) * sizeof *b.nrm) : NULL;
-    if (!b.pos || (normals && !b.nrm) ||
+    int uvs = roles[S_U] && roles[S_V];
+    b.uv = uvs ? malloc((b.nverts ? 2 * (size_t)b.nverts : 1) * sizeof *b.uv) : NULL;
+    if (!b.pos || (normals && !b.nrm) || (uvs && !b.uv) ||
         pf_reserve((void **)&b.idx, &b.cap_idx, 3 * (fe->count ? fe->count : 1), sizeof *b.idx)) {
         rc = pf_error_set(err, PF_ENOMEM, path, 0, "out of memory");
         goto done;
@@ -767,8 +782,10 @@ int pf_ply_read(const char *path, const pf_xform_t *xf, uint32_t mat, pf_mesh_t 
     m.ntris = b.ntris;
     m.pos = b.pos;
     m.nrm = b.nrm;
+    m.uv = b.uv;
     m.idx = b.idx;
     b.pos = b.nrm = NULL;
+    b.uv = NULL;
     b.idx = NULL;
     m.mat = malloc(m.ntris * sizeof *m.mat);
     if (!m.mat) {
@@ -791,6 +808,7 @@ done:
     pf_mesh_free(&m);
     free(b.pos);
     free(b.nrm);
+    free(b.uv);
     free(b.idx);
     free(p.elems);
     free(p.props);

@@ -9,15 +9,20 @@
  *   u8 has_camera, vec3 pos, vec3 look_at, vec3 up, f32 vfov_deg,
  *     u8 fov_shorter, u8 left_handed, f32 lens_radius, f32 focal_distance
  *   u32 nmats,    nmats x   { str name, u8 type, vec3 kd, vec3 ks, f32 ns, vec3 kt, f32 ior, vec3 le,
- *                             vec3 eta, vec3 k, f32 alpha, f32 thickness }   (version 4: eta, k, alpha;
- *                             version 5: type 4, the thin dielectric; version 7: type 5, the
- *                             coated diffuse, and thickness)
- *   u32 nmeshes,  nmeshes x { str name, u64 nverts, u64 ntris, u8 has_normals,
+ *                             vec3 eta, vec3 k, f32 alpha, f32 thickness, u32 kd_tex }   (version 4: eta,
+ *                             k, alpha; version 5: type 4, the thin dielectric; version 7: type 5, the
+ *                             coated diffuse, thickness and kd_tex)
+ *   u32 nmeshes,  nmeshes x { str name, u64 nverts, u64 ntris, u8 has_normals, u8 has_uv, u32 alpha_tex,
  *                             nverts x vec3 pos, (has_normals) nverts x vec3 nrm,
- *                             ntris x 3 u32 idx, ntris x u32 mat }
+ *                             (has_uv) nverts x 2 f32 uv, ntris x 3 u32 idx, ntris x u32 mat }
+ *                             (version 7: has_uv, alpha_tex, uv)
  *   u32 nspheres, nspheres x { vec3 center, f32 radius, u32 mat }
  *   u32 nlights,  nlights x  { u8 type, vec3 pos, vec3 intensity, vec3 dir, f32 cos_inner, f32 cos_outer }
  *                             (version 6: types 2 and 3, the distant and infinite lights)
+ *   u32 ntexs,    ntexs x    { str name, u8 type, f32 su, f32 sv, f32 du, f32 dv,
+ *                              3 x { vec3 c, u32 ref }, u8 wrap, u8 srgb, f32 scale, u8 invert,
+ *                              u8 pixels (0 none, 1 8-bit, 2 float), u32 width, u32 height,
+ *                              width x height x 3 u8 or f32 }   (version 7: the textures)
  * and nothing after.
  *
  * The reader treats the blob as hostile: every count is checked against the
@@ -37,18 +42,20 @@
 #include <string.h>
 
 #include "base/wire.h"
+#include "scene/texture.h"
 
 #define S_WHERE "scene blob"
 
 /* The smallest encoded size of each repeated item, for the count checks. */
-#define S_MIN_MATERIAL (2 + 1 + 22 * 4)
-#define S_MIN_MESH (2 + 8 + 8 + 1)
+#define S_MIN_MATERIAL (2 + 1 + 23 * 4 + 4)
+#define S_MIN_MESH (2 + 8 + 8 + 2 + 4)
+#define S_MIN_TEXTURE (2 + 1 + 4 * 4 + 3 * 16 + 2 + 4 + 2 + 8)
 #define S_VERTEX 12
 #define S_TRIANGLE 16
 #define S_SPHERE 20
 #define S_LIGHT (1 + 11 * 4)
 /* The settings field group (its layout is in messages.c). */
-#define S_SETTINGS 80
+#define S_SETTINGS 96
 
 /* Writers run while rc (in the caller's scope) is still 0. */
 #define W(call)          \
@@ -71,6 +78,38 @@ static int s_wr_vec3(pf_buf_t *b, pf_vec3 v)
     int rc = pf_wr_f32(b, v.x);
     W(pf_wr_f32(b, v.y));
     W(pf_wr_f32(b, v.z));
+    return rc;
+}
+
+static int s_wr_textures(pf_buf_t *out, const pf_scene_t *scene)
+{
+    int rc = pf_wr_u32(out, (uint32_t)scene->ntexs);
+    for (size_t i = 0; i < scene->ntexs && rc == 0; i++) {
+        const pf_texture_t *t = &scene->texs[i];
+        W(s_wr_name(out, t->name, sizeof t->name));
+        W(pf_wr_u8(out, (uint8_t)t->type));
+        W(pf_wr_f32(out, t->su));
+        W(pf_wr_f32(out, t->sv));
+        W(pf_wr_f32(out, t->du));
+        W(pf_wr_f32(out, t->dv));
+        for (int k = 0; k < 3; k++) {
+            W(s_wr_vec3(out, t->op[k].c));
+            W(pf_wr_u32(out, t->op[k].ref));
+        }
+        W(pf_wr_u8(out, (uint8_t)t->wrap));
+        W(pf_wr_u8(out, t->srgb ? 1 : 0));
+        W(pf_wr_f32(out, t->scale));
+        W(pf_wr_u8(out, t->invert ? 1 : 0));
+        W(pf_wr_u8(out, t->px8 ? 1 : t->pxf ? 2 : 0));
+        int has = t->px8 || t->pxf;
+        W(pf_wr_u32(out, has ? (uint32_t)t->width : 0));
+        W(pf_wr_u32(out, has ? (uint32_t)t->height : 0));
+        size_t n = has ? (size_t)t->width * (size_t)t->height * 3 : 0;
+        if (t->px8)
+            W(pf_wr_bytes(out, t->px8, n));
+        for (size_t k = 0; t->pxf && k < n && rc == 0; k++)
+            W(pf_wr_f32(out, t->pxf[k]));
+    }
     return rc;
 }
 
@@ -108,6 +147,7 @@ int pf_sceneblob_write(const pf_scene_t *scene, pf_buf_t *out)
         W(s_wr_vec3(out, m->k));
         W(pf_wr_f32(out, m->alpha));
         W(pf_wr_f32(out, m->thickness));
+        W(pf_wr_u32(out, m->kd_tex));
     }
 
     W(pf_wr_u32(out, (uint32_t)scene->nmeshes));
@@ -117,10 +157,14 @@ int pf_sceneblob_write(const pf_scene_t *scene, pf_buf_t *out)
         W(pf_wr_u64(out, mesh->nverts));
         W(pf_wr_u64(out, mesh->ntris));
         W(pf_wr_u8(out, mesh->nrm ? 1 : 0));
+        W(pf_wr_u8(out, mesh->uv ? 1 : 0));
+        W(pf_wr_u32(out, mesh->alpha_tex));
         for (size_t v = 0; v < mesh->nverts && rc == 0; v++)
             W(s_wr_vec3(out, mesh->pos[v]));
         for (size_t v = 0; mesh->nrm && v < mesh->nverts && rc == 0; v++)
             W(s_wr_vec3(out, mesh->nrm[v]));
+        for (size_t v = 0; mesh->uv && v < 2 * mesh->nverts && rc == 0; v++)
+            W(pf_wr_f32(out, mesh->uv[v]));
         for (size_t t = 0; t < 3 * mesh->ntris && rc == 0; t++)
             W(pf_wr_u32(out, mesh->idx[t]));
         for (size_t t = 0; t < mesh->ntris && rc == 0; t++)
@@ -144,6 +188,7 @@ int pf_sceneblob_write(const pf_scene_t *scene, pf_buf_t *out)
         W(pf_wr_f32(out, l->cos_inner));
         W(pf_wr_f32(out, l->cos_outer));
     }
+    W(s_wr_textures(out, scene));
     if (rc != 0)
         out->len = 0;
     return rc;
@@ -311,6 +356,7 @@ static void s_read_materials(s_in_t *in, pf_scene_t *scene)
         m.k = s_vec3(in, what, "k");
         m.alpha = s_f32(in, what, "alpha");
         m.thickness = s_f32(in, what, "thickness");
+        m.kd_tex = s_u32(in, what, "kd_tex"); /* checked against the textures by finalize */
         if (!in->status && m.type == PF_MAT_CONDUCTOR &&
             !(m.eta.x > 0.0f && m.eta.y > 0.0f && m.eta.z > 0.0f && m.k.x >= 0.0f && m.k.y >= 0.0f &&
               m.k.z >= 0.0f && m.alpha >= 0.0f && m.alpha <= 1.0f))
@@ -333,14 +379,17 @@ static void s_read_mesh(s_in_t *in, uint32_t index, size_t nmats, pf_mesh_t *mes
     uint64_t nverts = s_u64(in, what, "nverts");
     uint64_t ntris = s_u64(in, what, "ntris");
     uint8_t has_nrm = s_u8(in, what, "has_normals");
+    uint8_t has_uv = s_u8(in, what, "has_uv");
+    mesh->alpha_tex = s_u32(in, what, "alpha_tex"); /* checked against the textures by finalize */
     if (in->status)
         return;
-    if (has_nrm > 1) {
-        s_fail(in, PF_EPARSE, "%s has_normals is %u, not 0 or 1", what, (unsigned)has_nrm);
+    if (has_nrm > 1 || has_uv > 1) {
+        s_fail(in, PF_EPARSE, "%s has_normals is %u and has_uv %u, not 0 or 1", what, (unsigned)has_nrm,
+               (unsigned)has_uv);
         return;
     }
     /* Both counts against the bytes left, before allocating anything. */
-    size_t vbytes = has_nrm ? 2 * S_VERTEX : S_VERTEX;
+    size_t vbytes = (has_nrm ? 2 * S_VERTEX : S_VERTEX) + (has_uv ? 8 : 0);
     if (!s_count_fits(in, nverts, vbytes, "vertices"))
         return;
     if (ntris > (in->r.left - nverts * vbytes) / S_TRIANGLE) {
@@ -352,9 +401,10 @@ static void s_read_mesh(s_in_t *in, uint32_t index, size_t nmats, pf_mesh_t *mes
     mesh->ntris = (size_t)ntris;
     mesh->pos = malloc((nverts ? nverts : 1) * sizeof *mesh->pos);
     mesh->nrm = has_nrm ? malloc((nverts ? nverts : 1) * sizeof *mesh->nrm) : NULL;
+    mesh->uv = has_uv ? malloc((nverts ? 2 * nverts : 1) * sizeof *mesh->uv) : NULL;
     mesh->idx = malloc((ntris ? 3 * ntris : 1) * sizeof *mesh->idx);
     mesh->mat = malloc((ntris ? ntris : 1) * sizeof *mesh->mat);
-    if (!mesh->pos || (has_nrm && !mesh->nrm) || !mesh->idx || !mesh->mat) {
+    if (!mesh->pos || (has_nrm && !mesh->nrm) || (has_uv && !mesh->uv) || !mesh->idx || !mesh->mat) {
         s_fail(in, PF_ENOMEM, "out of memory for %s", what);
         return;
     }
@@ -363,6 +413,8 @@ static void s_read_mesh(s_in_t *in, uint32_t index, size_t nmats, pf_mesh_t *mes
     *nrm_src = has_nrm ? in->r.p : NULL;
     for (size_t v = 0; has_nrm && v < mesh->nverts && !in->status; v++)
         mesh->nrm[v] = s_vec3(in, what, "normals");
+    for (size_t v = 0; has_uv && v < 2 * mesh->nverts && !in->status; v++)
+        mesh->uv[v] = s_f32(in, what, "uv");
     for (size_t t = 0; t < 3 * mesh->ntris && !in->status; t++) {
         uint32_t k = s_u32(in, what, "indices");
         if (!in->status && k >= mesh->nverts)
@@ -420,6 +472,65 @@ static void s_read_lights(s_in_t *in, pf_scene_t *scene)
         l.cos_outer = s_f32(in, what, "cos_outer");
         if (!in->status && pf_scene_add_light(scene, &l) != PF_OK)
             s_fail(in, PF_ENOMEM, "out of memory for %s", what);
+    }
+}
+
+/* One texture's pixels: their count checked against the bytes left first. */
+static void s_read_pixels(s_in_t *in, const char *what, pf_texture_t *t, uint8_t kind)
+{
+    uint32_t w = s_u32(in, what, "width"), h = s_u32(in, what, "height");
+    if (in->status || kind == 0)
+        return;
+    if (kind > 2 || w == 0 || h == 0 || w > PF_TEX_MAX_SIDE || h > PF_TEX_MAX_SIDE ||
+        (uint64_t)w * h > PF_TEX_MAX_PIXELS) {
+        s_fail(in, PF_EPARSE, "%s: pixel kind %u, %" PRIu32 " x %" PRIu32 " pixels is not a texture image", what,
+               (unsigned)kind, w, h);
+        return;
+    }
+    size_t n = (size_t)w * h * 3;
+    if (!s_count_fits(in, n, kind == 1 ? 1 : 4, "texture channels"))
+        return;
+    t->width = (int)w;
+    t->height = (int)h;
+    if (kind == 1) {
+        t->px8 = malloc(n);
+        if (t->px8)
+            memcpy(t->px8, pf_rd_bytes(&in->r, n), n);
+    } else if ((t->pxf = malloc(n * sizeof *t->pxf)) != NULL) {
+        for (size_t k = 0; k < n && !in->status; k++)
+            t->pxf[k] = s_f32(in, what, "pixels");
+    }
+    if (!t->px8 && !t->pxf)
+        s_fail(in, PF_ENOMEM, "out of memory for %s", what);
+}
+
+static void s_read_textures(s_in_t *in, pf_scene_t *scene)
+{
+    uint32_t n = s_u32(in, "textures", "count");
+    if (!s_count_fits(in, n, S_MIN_TEXTURE, "textures"))
+        return;
+    for (uint32_t i = 0; i < n && !in->status; i++) {
+        char what[32];
+        snprintf(what, sizeof what, "texture %" PRIu32, i);
+        pf_texture_t t = pf_texture_constant("", pf_v3s(0.0f));
+        s_str(in, what, "name", t.name, sizeof t.name);
+        t.type = (pf_tex_type)s_u8(in, what, "type");
+        t.su = s_f32(in, what, "su");
+        t.sv = s_f32(in, what, "sv");
+        t.du = s_f32(in, what, "du");
+        t.dv = s_f32(in, what, "dv");
+        for (int k = 0; k < 3; k++) {
+            t.op[k].c = s_vec3(in, what, "operand");
+            t.op[k].ref = s_u32(in, what, "operand ref"); /* types, refs and wrap: checked by finalize */
+        }
+        t.wrap = (pf_tex_wrap)s_u8(in, what, "wrap");
+        t.srgb = s_u8(in, what, "srgb") != 0;
+        t.scale = s_f32(in, what, "scale");
+        t.invert = s_u8(in, what, "invert") != 0;
+        s_read_pixels(in, what, &t, s_u8(in, what, "pixels"));
+        if (!in->status && pf_scene_add_texture(scene, &t) < 0)
+            s_fail(in, PF_ENOMEM, "out of memory for %s", what);
+        pf_texture_free(&t);
     }
 }
 
@@ -485,8 +596,9 @@ pf_scene_t *pf_sceneblob_read(const uint8_t *data, size_t len, pf_error_t *err)
     }
     s_read_spheres(&in, scene);
     s_read_lights(&in, scene);
+    s_read_textures(&in, scene);
     if (!in.status && in.r.left > 0)
-        s_fail(&in, PF_EPARSE, "%zu trailing bytes after the lights", in.r.left);
+        s_fail(&in, PF_EPARSE, "%zu trailing bytes after the textures", in.r.left);
 
     if (!in.status) {
         /* Finalize reports its errors under the scene's path; name the blob. */

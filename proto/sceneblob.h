@@ -14,8 +14,9 @@
  * (the conductor's, after le); 5: material type 4, the thin dielectric,
  * which an older worker would refuse as malformed; 6: light types 2 and 3,
  * the distant and the infinite light (same record); 7: materials gained
- * thickness (the coat's) and the settings the pixel filter (filter_box,
- * filter_tent). Older blobs are refused. */
+ * thickness (the coat's) and kd_tex, meshes uv and alpha_tex, the scene its
+ * textures, the settings the pixel filter (filter_box, filter_tent). Older
+ * blobs are refused. */
 #define PF_SCENEBLOB_VERSION 7
 
 /* Serializes a finalized scene into out (reset first). 0 or PF_ENOMEM. */

@@ -91,6 +91,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "accel/surface.h"
 #include "base/log.h"
 #include "base/rng.h"
 #include "material/bsdf.h"
@@ -250,7 +251,8 @@ static void s_gather_trace(s_state *st, pf_ray_t ray, s_gather_end *end)
         pf_hit_t h;
         if (!pf_accel_intersect(c->accel, &ray, INFINITY, &h))
             return;
-        const pf_material_t *m = &c->scene->mats[h.mat];
+        pf_material_t mt = pf_material_at(c->scene, &h);
+        const pf_material_t *m = &mt;
         pf_vec3 wo = pf_neg(ray.d);
         pf_vec3 nf = pf_face_forward(h.ng, wo);
         pf_vec3 ns = pf_dot(h.ng, nf) > 0.0f ? h.ns : pf_neg(h.ns);
@@ -505,7 +507,8 @@ static pf_vec3 s_radiance(s_state *st, pf_ray_t ray, int depth, pf_vec3 thr, int
     pf_hit_t h;
     if (!pf_accel_intersect(c->accel, &ray, INFINITY, &h)) /* the sky, counted as an emitter's front */
         return s_sky(st, ray.d, count_le);
-    const pf_material_t *m = &c->scene->mats[h.mat];
+    pf_material_t mt = pf_material_at(c->scene, &h);
+    const pf_material_t *m = &mt;
     pf_vec3 wo = pf_neg(ray.d);
     pf_vec3 nf = pf_face_forward(h.ng, wo);
     pf_vec3 ns = pf_dot(h.ng, nf) > 0.0f ? h.ns : pf_neg(h.ns);
@@ -640,13 +643,14 @@ static const pf_material_t *s_primary_hit(const pf_render_ctx_t *c, pf_ray_t ray
 {
     *length = 0.0f;
     for (int depth = 0; pf_accel_intersect(c->accel, &ray, INFINITY, h); depth++) {
-        const pf_material_t *m = &c->scene->mats[h->mat];
+        pf_material_t mt = pf_material_at(c->scene, h);
+        const pf_material_t *m = &mt;
         *length += h->t;
         pf_vec3 wo = pf_neg(ray.d);
         *nf = pf_face_forward(h->ng, wo);
         *ns = pf_dot(h->ng, *nf) > 0.0f ? h->ns : pf_neg(h->ns);
         if (m->type == PF_MAT_DIFFUSE || pf_mat_coated(m))
-            return pf_mat_nonspecular(m) && !pf_is_black(m->kd) ? m : NULL;
+            return pf_mat_nonspecular(m) && !pf_is_black(m->kd) ? &c->scene->mats[h->mat] : NULL;
         if (depth >= c->settings.max_depth)
             return NULL;
         if (pf_mat_rough(m) || pf_mat_rough_glass(m))

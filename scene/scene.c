@@ -4,6 +4,7 @@
 #include "scene/scene.h"
 
 #include <float.h>
+#include <math.h>
 #include <stdlib.h>
 #include <stdio.h>
 #include <string.h>
@@ -119,6 +120,7 @@ void pf_mesh_free(pf_mesh_t *mesh)
         return;
     free(mesh->pos);
     free(mesh->nrm);
+    free(mesh->uv);
     free(mesh->idx);
     free(mesh->mat);
     memset(mesh, 0, sizeof *mesh);
@@ -135,6 +137,9 @@ void pf_scene_destroy(pf_scene_t **self_p)
     free(self->mats);
     free(self->spheres);
     free(self->lights);
+    for (size_t i = 0; i < self->ntexs; i++)
+        pf_texture_free(&self->texs[i]);
+    free(self->texs);
     free(self);
     *self_p = NULL;
 }
@@ -286,6 +291,72 @@ static size_t s_drop_degenerate(pf_mesh_t *mesh)
     return dropped;
 }
 
+void pf_texture_free(pf_texture_t *tex)
+{
+    if (!tex)
+        return;
+    free(tex->px8);
+    free(tex->pxf);
+    tex->px8 = NULL;
+    tex->pxf = NULL;
+}
+
+static int s_check_one(const pf_texture_t *t, size_t i, const char *file, pf_error_t *err)
+{
+    if ((unsigned)t->type > PF_TEX_LAST || (unsigned)t->wrap > PF_WRAP_LAST)
+        return pf_error_set(err, PF_EPARSE, file, 0, "texture '%s': unknown type %d or wrap mode %d", t->name,
+                            (int)t->type, (int)t->wrap);
+    if (!isfinite(t->su) || !isfinite(t->sv) || !isfinite(t->du) || !isfinite(t->dv) || !isfinite(t->scale))
+        return pf_error_set(err, PF_EPARSE, file, 0, "texture '%s' has a non-finite mapping or scale", t->name);
+    for (int k = 0; k < 3; k++) {
+        if (!pf_is_finite3(t->op[k].c))
+            return pf_error_set(err, PF_EPARSE, file, 0, "texture '%s' has a non-finite value", t->name);
+        if (t->op[k].ref > i)
+            return pf_error_set(err, PF_EPARSE, file, 0,
+                                "texture '%s' refers to texture %u, not one defined before it", t->name,
+                                (unsigned)t->op[k].ref);
+    }
+    if (t->type == PF_TEX_IMAGE) {
+        if (t->width <= 0 || t->height <= 0 || t->width > PF_TEX_MAX_SIDE || t->height > PF_TEX_MAX_SIDE ||
+            (uint64_t)t->width * (uint64_t)t->height > PF_TEX_MAX_PIXELS || (!t->px8 == !t->pxf))
+            return pf_error_set(err, PF_EPARSE, file, 0, "texture '%s': bad image (%d x %d)", t->name, t->width,
+                                t->height);
+    }
+    return PF_OK;
+}
+
+/* Checks the texture table and the refs into it (materials' kd_tex,
+ * operands only to earlier textures, types, wrap modes, image sizes,
+ * finite parameters); replaces non-finite pixels and mesh uvs by 0. */
+static int s_check_textures(pf_scene_t *self, pf_error_t *err)
+{
+    const char *file = self->path[0] ? self->path : "scene";
+    for (size_t i = 0; i < self->ntexs; i++) {
+        pf_texture_t *t = &self->texs[i];
+        int rc = s_check_one(t, i, file, err);
+        if (rc)
+            return rc;
+        /* An HDR file's inf or nan would poison every pixel it is mixed into. */
+        for (size_t k = 0; t->pxf && k < (size_t)t->width * (size_t)t->height * 3; k++)
+            if (!isfinite(t->pxf[k]))
+                t->pxf[k] = 0.0f;
+    }
+    for (size_t i = 0; i < self->nmats; i++)
+        if (self->mats[i].kd_tex > self->ntexs)
+            return pf_error_set(err, PF_EPARSE, file, 0, "material '%s': texture %u out of range (%zu textures)",
+                                self->mats[i].name, (unsigned)self->mats[i].kd_tex, self->ntexs);
+    for (size_t m = 0; m < self->nmeshes; m++) {
+        pf_mesh_t *mesh = &self->meshes[m];
+        if (mesh->alpha_tex > self->ntexs)
+            return pf_error_set(err, PF_EPARSE, file, 0, "mesh '%s': alpha texture %u out of range (%zu textures)",
+                                mesh->name, (unsigned)mesh->alpha_tex, self->ntexs);
+        for (size_t k = 0; mesh->uv && k < 2 * mesh->nverts; k++)
+            if (!isfinite(mesh->uv[k]))
+                mesh->uv[k] = 0.0f;
+    }
+    return PF_OK;
+}
+
 /* Frames the geometry: looks at the bounds' centre from +z, far enough that
  * the bounding sphere fits the vertical field of view. */
 static void s_frame_camera(pf_scene_t *self)
@@ -354,6 +425,9 @@ int pf_scene_finalize(pf_scene_t *self, pf_error_t *err)
         if (m->type > PF_MAT_LAST)
             return pf_error_set(err, PF_EPARSE, file, 0, "material '%s': unknown type %d", m->name, (int)m->type);
     }
+    int trc = s_check_textures(self, err);
+    if (trc)
+        return trc;
     size_t dropped = 0, ntris = 0;
     for (size_t mi = 0; mi < self->nmeshes; mi++) {
         pf_mesh_t *mesh = &self->meshes[mi];

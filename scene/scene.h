@@ -42,6 +42,7 @@ typedef struct pf_material {
     float thickness; /* COATED: the coat's thickness, each crossing attenuates by exp(-thickness / |cos|)
                       * (pbrt-v4's layered BSDF, default 0.01 there); 0: lossless */
     pf_vec3 le;  /* emitted radiance, one-sided */
+    uint32_t kd_tex; /* 1 + index into pf_scene_t.texs: kd is that texture at the hit's uv; 0: kd as is */
 } pf_material_t;
 
 /* pbrt-v4's "reflectance" form of a conductor: eta = 1 and this k, which
@@ -53,15 +54,65 @@ static inline float pf_conductor_k_of_reflectance(float r)
     return 2.0f * sqrtf(r) / sqrtf(1.0f - r);
 }
 
-/* A triangle mesh in world space. nrm is per vertex (shading normals) or NULL. */
+/* A triangle mesh in world space. nrm is per vertex (shading normals) or
+ * NULL; uv is per vertex (texture coordinates, 2 floats each) or NULL, when
+ * a hit's uv is pbrt's default parametrization (scene/texture.h). */
 typedef struct pf_mesh {
     char name[PF_NAME_MAX];
     size_t nverts, ntris;
     pf_vec3 *pos;    /* nverts */
     pf_vec3 *nrm;    /* nverts, unit length, or NULL */
+    float *uv;       /* 2 * nverts, or NULL */
     uint32_t *idx;   /* 3 * ntris vertex indices */
     uint32_t *mat;   /* ntris material indices into pf_scene_t.mats */
+    uint32_t alpha_tex; /* 1 + texture index: an alpha cut-out (accel/alpha.c); 0: opaque */
 } pf_mesh_t;
+
+typedef enum {
+    PF_TEX_CONSTANT = 0, /* op[0] */
+    PF_TEX_IMAGE = 1,    /* pixels, times scale, inverted (1 - v, clamped at 0) when invert */
+    PF_TEX_CHECKER = 2,  /* op[0] where floor(s) + floor(t) is even, else op[1] (pbrt-v4 checkerboard, 2D) */
+    PF_TEX_SCALE = 3,    /* op[0] * op[1] */
+    PF_TEX_MIX = 4,      /* (1 - a) op[0] + a op[1], a = op[2]'s first channel */
+} pf_tex_type;
+#define PF_TEX_LAST PF_TEX_MIX
+
+typedef enum { PF_WRAP_REPEAT = 0, PF_WRAP_CLAMP = 1, PF_WRAP_BLACK = 2 } pf_tex_wrap;
+#define PF_WRAP_LAST PF_WRAP_BLACK
+
+/* The largest image a texture may hold: each side and the pixel count. */
+#define PF_TEX_MAX_SIDE 16384
+#define PF_TEX_MAX_PIXELS (1u << 28)
+
+/* An operand of a procedural: the texture ref (1 + index, earlier in the
+ * table) when nonzero, else the constant c. */
+typedef struct pf_tex_operand {
+    pf_vec3 c;
+    uint32_t ref;
+} pf_tex_operand_t;
+
+/* A texture (pbrt-v4's 2D textures on uv coordinates; scene/texture.h
+ * evaluates them): an image (8-bit, sRGB-encoded or linear, or float linear
+ * RGB) with bilinear lookup and a wrap mode, or a procedural (constant,
+ * checkerboard, scale, mix) whose operands are constants or earlier
+ * textures. The scene owns the pixels. */
+typedef struct pf_texture {
+    char name[PF_NAME_MAX];
+    pf_tex_type type;
+    /* pbrt's uv mapping: s = su u + du, t = sv v + dv. */
+    float su, sv, du, dv;
+    pf_tex_operand_t op[3];
+    /* IMAGE: width x height RGB pixels, top row first, in px8 (8 bits,
+     * sRGB-encoded when srgb, else linear v / 255) or pxf (linear float);
+     * t = 0 is the bottom row, as in pbrt. */
+    int width, height;
+    pf_tex_wrap wrap;
+    int srgb;
+    float scale;
+    int invert;
+    uint8_t *px8;
+    float *pxf;
+} pf_texture_t;
 
 typedef struct pf_sphere {
     pf_vec3 center;
@@ -166,6 +217,8 @@ typedef struct pf_scene {
     size_t nspheres, cap_spheres;
     pf_light_t *lights;
     size_t nlights, cap_lights;
+    pf_texture_t *texs;       /* the textures materials refer to (scene/texture.h) */
+    size_t ntexs, cap_texs;
     pf_camera_desc_t camera;
     int has_camera;
     pf_settings_t settings;
@@ -186,6 +239,9 @@ int pf_scene_add_sphere(pf_scene_t *self, const pf_sphere_t *sphere);
 int pf_scene_add_light(pf_scene_t *self, const pf_light_t *light);
 /* Frees a mesh's arrays (for meshes not handed to a scene). */
 void pf_mesh_free(pf_mesh_t *mesh);
+
+/* Frees a texture's pixels (for textures not handed to a scene). */
+void pf_texture_free(pf_texture_t *tex);
 
 /* A default material: grey Lambertian (kd 0.8). */
 pf_material_t pf_material_default(const char *name);

@@ -7,6 +7,7 @@
  *   pbrt_util.c   interned names, the warnings and their report, matrices
  *   pbrt_shape.c  shapes into meshes and spheres, object instances
  *   pbrt_mat.c    materials, textures, area and point/spot lights
+ *   pbrt_tex.c    textures made scene textures (imagemap, checkerboard, ...)
  *
  * One pf_pbrt_t holds everything a load owns; every function takes it.
  * Single-threaded, like every loader. Nothing outside load/ includes this. */
@@ -134,6 +135,8 @@ typedef struct pf_pbrt_tex {
     char *cls;       /* imagemap, constant, ... */
     pf_pbrt_params_t params;
     pf_pbrt_loc_t loc;
+    uint32_t ref;    /* the scene texture made of it (1 + index), 0 not yet (pbrt_tex.c) */
+    int converting;  /* being made: a texture that names itself */
 } pf_pbrt_tex_t;
 
 /* An AreaLightSource, evaluated at once. */
@@ -235,6 +238,7 @@ typedef struct pf_pbrt {
     pf_pbrt_meshes_t shapes;
     uint64_t ntris; /* every triangle made so far, instances included */
     unsigned nshapes; /* for mesh names */
+    uint32_t shape_alpha; /* the Shape being read: its alpha texture ref (pbrt_tex.c), 0 opaque */
     pf_pbrt_warning_t *warnings;
     size_t nwarnings, cap_warnings;
 } pf_pbrt_t;
@@ -347,6 +351,17 @@ int pf_pbrt_texture(pf_pbrt_t *c, const char *name, const char *type, const char
 int pf_pbrt_find_texture(pf_pbrt_t *c, const char *name, int is_float, pf_pbrt_loc_t loc, pf_pbrt_tex_t **out);
 /* Material / MakeNamedMaterial: takes *ps. */
 int pf_pbrt_material(pf_pbrt_t *c, const char *name, const char *type, pf_pbrt_params_t *ps, pf_pbrt_loc_t loc);
+
+/* ---- pbrt_tex.c ---- */
+/* The scene texture of a "texture" colour parameter p (a spectrum texture),
+ * made on first use: *ref its ref, or 0 when pbrt's texture is a constant
+ * (the caller reads the constant) or of a class not rendered (the caller
+ * warns and uses its default). */
+int pf_pbrt_color_texture(pf_pbrt_t *c, pf_pbrt_param_t *p, uint32_t *ref);
+/* A shape's "alpha" (float or float texture) as a scene texture ref in *ref:
+ * 0 when absent or 1 (opaque), or when its texture class is not rendered
+ * (warned). */
+int pf_pbrt_alpha_texture(pf_pbrt_t *c, pf_pbrt_params_t *ps, uint32_t *ref);
 int pf_pbrt_area_light(pf_pbrt_t *c, const char *type, pf_pbrt_params_t *ps, pf_pbrt_loc_t loc);
 int pf_pbrt_light(pf_pbrt_t *c, const char *type, pf_pbrt_params_t *ps, pf_pbrt_loc_t loc);
 /* The pair index for the current material and the area light area (-1)

@@ -216,6 +216,12 @@ static int s_not_renderable(pf_pbrt_t *c, pf_pbrt_mat_t *m, const char *what, co
 static int s_diffuse(pf_pbrt_t *c, pf_pbrt_mat_t *m, const char *what)
 {
     m->m.type = PF_MAT_DIFFUSE;
+    pf_pbrt_param_t *p = pf_pbrt_param(&m->params, "reflectance");
+    if (p && p->type == PF_PBRT_P_TEXTURE) {
+        int rc = pf_pbrt_color_texture(c, p, &m->m.kd_tex);
+        if (rc || m->m.kd_tex)
+            return rc;
+    }
     return pf_pbrt_get_color(c, &m->params, "reflectance", PF_PBRT_ALBEDO, pf_v3s(0.5f), what, &m->m.kd, NULL);
 }
 

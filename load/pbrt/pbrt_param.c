@@ -635,8 +635,8 @@ static int s_tex_color(pf_pbrt_t *c, pf_pbrt_param_t *p, pf_pbrt_stype st, pf_ve
     }
     *out = def;
     return pf_pbrt_warn(c, p->loc, "texture",
-                        "%s: '%s' is the %s texture \"%s\"; textures are not rendered yet: the constant (%g %g %g) "
-                        "stands in",
+                        "%s: '%s' is the %s texture \"%s\", not rendered here (photonfarm renders image, checkerboard, "
+                        "scale and mix textures as a diffuse reflectance): the constant (%g %g %g) stands in",
                         what, p->name, t->cls, p->str[0], def.x, def.y, def.z);
 }
 

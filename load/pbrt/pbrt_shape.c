@@ -165,6 +165,7 @@ static int s_place(pf_pbrt_t *c, pf_mesh_t *mesh, int area, const char *name, pf
     if (rc == PF_OK && pair < 0)
         rc = pair;
     if (rc == PF_OK) {
+        mesh->alpha_tex = c->shape_alpha;
         for (size_t t = 0; t < mesh->ntris; t++)
             mesh->mat[t] = (uint32_t)pair;
         if (name)
@@ -192,8 +193,8 @@ static void s_fill(pf_mesh_t *m, const double *P, const double *N, size_t n)
     }
 }
 
-/* Reads P, N and uv of a mesh shape: P required (at least min points), N
- * as many as P when given; uv is read and left for the textures step. */
+/* Reads P and N of a mesh shape: P required (at least min points), N as
+ * many as P when given; uv is marked used (s_uvs reads a trianglemesh's). */
 static int s_points(pf_pbrt_t *c, pf_pbrt_params_t *ps, pf_pbrt_loc_t loc, const char *what, const double **P,
                     size_t *np, const double **N)
 {
@@ -210,6 +211,24 @@ static int s_points(pf_pbrt_t *c, pf_pbrt_params_t *ps, pf_pbrt_loc_t loc, const
         rc = pf_pbrt_error_line(c, PF_ERANGE, loc, "%s: more than 2^32 - 1 points", what);
     pf_pbrt_param(ps, "uv");
     return rc;
+}
+
+/* A trianglemesh's "point2 uv" (or pbrt-v3's "float uv"): 2 per point,
+ * into a new array in *out (NULL when absent). */
+static int s_uvs(pf_pbrt_t *c, pf_pbrt_params_t *ps, size_t np, const char *what, float **out)
+{
+    *out = NULL;
+    pf_pbrt_param_t *p = pf_pbrt_param(ps, "uv");
+    if (!p)
+        return PF_OK;
+    if (p->nstr || p->nnum != 2 * np)
+        return pf_pbrt_error_line(c, PF_EPARSE, p->loc, "%s: %zu uv values for %zu points (2 each)", what, p->nnum,
+                                  np);
+    if (!(*out = malloc((np ? 2 * np : 1) * sizeof **out)))
+        return pf_pbrt_error_line(c, PF_ENOMEM, p->loc, "out of memory");
+    for (size_t i = 0; i < 2 * np; i++)
+        (*out)[i] = isfinite(p->num[i]) ? (float)p->num[i] : 0.0f;
+    return PF_OK;
 }
 
 /* trianglemesh and loopsubdiv (its control mesh). */
@@ -232,14 +251,19 @@ static int s_trianglemesh(pf_pbrt_t *c, pf_pbrt_params_t *ps, int area, pf_pbrt_
                           "loopsubdiv: the control mesh is rendered without subdivision");
     }
     pf_mesh_t m;
+    float *uv = NULL;
     size_t nt = idx ? ni / 3 : 1;
+    if (rc == PF_OK && type[0] == 't')
+        rc = s_uvs(c, ps, np, type, &uv);
     if (rc == PF_OK)
         rc = s_mesh_alloc(c, loc, np, nt, N != NULL, &m);
     if (rc) {
         free(idx);
+        free(uv);
         return rc;
     }
     s_fill(&m, P, N, np);
+    m.uv = uv;
     for (size_t i = 0; i < 3 * nt; i++)
         m.idx[i] = idx ? idx[i] : (uint32_t)i;
     free(idx);
@@ -398,6 +422,9 @@ static int s_sphere(pf_pbrt_t *c, pf_pbrt_params_t *ps, int area, pf_pbrt_loc_t 
                                     phimax, S_PHI_STEPS, S_THETA_STEPS)))
         return rc;
     if (full && area < 0 && !c->gs.reverse && c->cur_object < 0 && s_similarity(c->gs.ctm, &s)) {
+        if (c->shape_alpha &&
+            (rc = pf_pbrt_warn(c, loc, "alpha on a sphere (opaque)", "sphere: \"alpha\" is not rendered on spheres")))
+            return rc;
         int pair = pf_pbrt_pair(c, -1, pf_v3s(0.0f), loc);
         if (pair < 0)
             return pair;
@@ -477,14 +504,11 @@ static int s_cylinder(pf_pbrt_t *c, pf_pbrt_params_t *ps, int area, pf_pbrt_loc_
     return s_place(c, &m, area, name, loc);
 }
 
-/* "alpha": cut-outs are not rendered yet; the shape is opaque. */
+/* "alpha": the cut-out texture the shape's meshes get (s_place). */
 static int s_alpha_param(pf_pbrt_t *c, pf_pbrt_params_t *ps, const char *type)
 {
-    pf_pbrt_param_t *p = pf_pbrt_param(ps, "alpha");
-    if (!p || (p->type == PF_PBRT_P_FLOAT && p->nnum == 1 && p->num[0] == 1.0))
-        return PF_OK;
-    return pf_pbrt_warn(c, p->loc, "alpha (not rendered yet)", "Shape \"%s\": \"alpha\" is ignored; the shape is opaque",
-                        type);
+    (void)type;
+    return pf_pbrt_alpha_texture(c, ps, &c->shape_alpha);
 }
 
 int pf_pbrt_shape(pf_pbrt_t *c, const char *type, pf_pbrt_params_t *ps, pf_pbrt_loc_t loc)
@@ -539,6 +563,14 @@ static int s_instance_mesh(pf_pbrt_t *c, const pf_mesh_t *src, const char *obj, 
     memcpy(d.pos, src->pos, src->nverts * sizeof *d.pos);
     if (src->nrm)
         memcpy(d.nrm, src->nrm, src->nverts * sizeof *d.nrm);
+    d.alpha_tex = src->alpha_tex;
+    if (src->uv) {
+        if (!(d.uv = malloc((src->nverts ? 2 * src->nverts : 1) * sizeof *d.uv))) {
+            pf_mesh_free(&d);
+            return pf_pbrt_error_line(c, PF_ENOMEM, loc, "out of memory");
+        }
+        memcpy(d.uv, src->uv, 2 * src->nverts * sizeof *d.uv);
+    }
     memcpy(d.idx, src->idx, 3 * src->ntris * sizeof *d.idx);
     memcpy(d.mat, src->mat, src->ntris * sizeof *d.mat);
     snprintf(d.name, sizeof d.name, "%.30s/%.30s", obj, src->name);

@@ -58,7 +58,7 @@ TOOLS = {"bench": ["coordinator", "worker"], "fuzz": ["coordinator", "worker"]}
 # CMakeLists.txt files).
 EXTERNAL = {
     "base": {"m"},
-    "image": {"PkgConfig::PNG", "tinyexr::tinyexr"},
+    "image": {"PkgConfig::PNG", "tinyexr::tinyexr", "PkgConfig::STB"},
     "mesh": {"PkgConfig::ZLIB"},
     "load": {"PkgConfig::CJSON"},
     "accel": {"embree"},

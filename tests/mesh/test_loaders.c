@@ -118,22 +118,28 @@ static void test_obj_basic(void)
     const pf_mesh_t *t = s_mesh(s, "tri_normals");
     CHECK(t != NULL);
     if (t) {
-        /* Second face: -4 -3 -1 of 4 positions = 1 2 4; shares three (pos, nrm) pairs. */
-        CHECK(t->nverts == 4 && t->ntris == 2);
-        CHECK(t->nrm != NULL);
-        CHECK(s_tri_is(t, 0, 0, 1, 2) && s_tri_is(t, 1, 0, 1, 3));
-        CHECK(t->nrm && s_veq(t->nrm[0], 0, 0, 1) && s_veq(t->nrm[3], 0, 0, 1));
-        CHECK(s_veq(t->pos[3], 0, 1, 0));
+        /* Second face: -4 -3 -1 of 4 positions = 1 2 4, with the same normal
+         * but uvs, which the first face's corners lack: a vertex is a
+         * (pos, nrm, uv) triple, so none is shared. */
+        CHECK(t->nverts == 6 && t->ntris == 2);
+        CHECK(t->nrm != NULL && t->uv != NULL);
+        CHECK(s_tri_is(t, 0, 0, 1, 2) && s_tri_is(t, 1, 3, 4, 5));
+        CHECK(t->nrm && s_veq(t->nrm[0], 0, 0, 1) && s_veq(t->nrm[5], 0, 0, 1));
+        CHECK(s_veq(t->pos[3], 0, 0, 0) && s_veq(t->pos[5], 0, 1, 0));
+        /* vt 1 = (0, 0), vt 2 = (1, 0); corners without vt get (0, 0) */
+        CHECK(t->uv && t->uv[0] == 0 && t->uv[1] == 0 && t->uv[8] == 1 && t->uv[9] == 0 && t->uv[10] == 0);
         CHECK(t->mat[0] == (uint32_t)pf_scene_find_material(s, "red"));
         CHECK(t->mat[1] == (uint32_t)def); /* unknown material name */
     }
     const pf_mesh_t *p = s_mesh(s, "pentagon");
     CHECK(p != NULL);
     if (p) {
-        CHECK(p->nverts == 5 && p->ntris == 4);
-        CHECK(p->nrm == NULL);
+        /* the pentagon's corners have vt, the last face's not: 5 + 3 vertices */
+        CHECK(p->nverts == 8 && p->ntris == 4);
+        CHECK(p->nrm == NULL && p->uv != NULL);
         CHECK(s_tri_is(p, 0, 0, 1, 2) && s_tri_is(p, 1, 0, 2, 3) && s_tri_is(p, 2, 0, 3, 4));
-        CHECK(s_tri_is(p, 3, 0, 1, 2)); /* f -5 -4 -3 = positions 5 6 7 again */
+        CHECK(s_tri_is(p, 3, 5, 6, 7)); /* f -5 -4 -3 = positions 5 6 7 again, without uv */
+        CHECK(p->uv && p->uv[2] == 1 && p->uv[3] == 0 && p->uv[4] == 0);
         CHECK(s_veq(p->pos[2], 3.5f, 1, 0) && s_veq(p->pos[4], 1.5f, 1, 0));
         int mirror = pf_scene_find_material(s, "mirror"), lamp = pf_scene_find_material(s, "lamp");
         CHECK(p->mat[0] == (uint32_t)mirror && p->mat[2] == (uint32_t)mirror && p->mat[3] == (uint32_t)lamp);
@@ -784,7 +790,8 @@ static void test_cornell_spheres(void)
     m = s_mat(s, "light");
     CHECK(m && s_veq(m->le, 10, 10, 10) && s_veq(m->kd, 0.78f, 0.78f, 0.78f));
     const pf_mesh_t *sp = s_mesh(s, "leftSphere");
-    CHECK(sp && sp->nverts == 546 && sp->ntris == 1088 && sp->nrm != NULL);
+    /* 546 positions; the uv seam (and poles) make 628 (pos, nrm, uv) vertices */
+    CHECK(sp && sp->nverts == 628 && sp->ntris == 1088 && sp->nrm != NULL && sp->uv != NULL);
     if (sp)
         CHECK(sp->mat[0] == (uint32_t)pf_scene_find_material(s, "leftSphere"));
     const pf_mesh_t *l = s_mesh(s, "light");

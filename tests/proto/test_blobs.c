@@ -212,6 +212,10 @@ static const char *s_scene_diff(const pf_scene_t *a, const pf_scene_t *b)
             return "mesh positions";
         if (!x->nrm != !y->nrm || (x->nrm && memcmp(x->nrm, y->nrm, x->nverts * sizeof *x->nrm)))
             return "mesh normals";
+        if (x->alpha_tex != y->alpha_tex)
+            return "mesh alpha";
+        if (!x->uv != !y->uv || (x->uv && memcmp(x->uv, y->uv, 2 * x->nverts * sizeof *x->uv)))
+            return "mesh uvs";
         if (memcmp(x->idx, y->idx, 3 * x->ntris * sizeof *x->idx))
             return "mesh indices";
         if (memcmp(x->mat, y->mat, x->ntris * sizeof *x->mat))
@@ -221,6 +225,19 @@ static const char *s_scene_diff(const pf_scene_t *a, const pf_scene_t *b)
         return "spheres";
     if (a->nlights != b->nlights || (a->nlights && memcmp(a->lights, b->lights, a->nlights * sizeof *a->lights)))
         return "lights";
+    if (a->ntexs != b->ntexs)
+        return "texture count";
+    for (size_t i = 0; i < a->ntexs; i++) {
+        const pf_texture_t *x = &a->texs[i], *y = &b->texs[i];
+        size_t n = (size_t)x->width * (size_t)x->height * 3;
+        if (strcmp(x->name, y->name) || x->type != y->type || x->su != y->su || x->sv != y->sv || x->du != y->du ||
+            x->dv != y->dv || memcmp(x->op, y->op, sizeof x->op) || x->wrap != y->wrap || x->srgb != y->srgb ||
+            x->scale != y->scale || x->invert != y->invert || x->width != y->width || x->height != y->height)
+            return "texture fields";
+        if (!x->px8 != !y->px8 || !x->pxf != !y->pxf || (x->px8 && memcmp(x->px8, y->px8, n)) ||
+            (x->pxf && memcmp(x->pxf, y->pxf, n * sizeof *x->pxf)))
+            return "texture pixels";
+    }
     return NULL;
 }
 
@@ -262,8 +279,9 @@ static int s_scene_truncation_fails(const uint8_t *data, size_t len)
 typedef struct s_offsets {
     size_t reserved, has_camera, fov_shorter, left_handed, lens_radius, focal_distance, nmats, mat1_type, mat0_name, nmeshes;
     size_t mat4_eta; /* the conductor's eta, k, alpha */
-    size_t mesh0_nverts, mesh0_ntris, mesh0_has_nrm, mesh0_pos, mesh0_idx, mesh0_mat;
-    size_t nspheres, sphere0_radius, sphere0_mat, nlights, light0_type, end;
+    size_t mat1_kd_tex;
+    size_t mesh0_nverts, mesh0_ntris, mesh0_has_nrm, mesh0_has_uv, mesh0_pos, mesh0_idx, mesh0_mat;
+    size_t nspheres, sphere0_radius, sphere0_mat, nlights, light0_type, ntexs, end;
 } s_offsets_t;
 
 static size_t s_str_len_at(const uint8_t *p) { return (size_t)p[0] | (size_t)p[1] << 8; }
@@ -290,7 +308,7 @@ static s_offsets_t s_walk(const uint8_t *d)
     for (uint32_t i = 0; i < nm; i++) {
         at += 2 + s_str_len_at(d + at);
         if (i == 1)
-            o.mat1_type = at;
+            o.mat1_type = at, o.mat1_kd_tex = at + 1 + 56 + 28;
         if (i == 4)
             o.mat4_eta = at + 1 + 56;
         at += 1 + 56 + 32;
@@ -302,12 +320,12 @@ static s_offsets_t s_walk(const uint8_t *d)
         at += 2 + s_str_len_at(d + at);
         uint64_t nv = d[at], nt = d[at + 8];
         if (i == 0)
-            o.mesh0_nverts = at, o.mesh0_ntris = at + 8, o.mesh0_has_nrm = at + 16;
-        int has = d[at + 16];
-        at += 17;
+            o.mesh0_nverts = at, o.mesh0_ntris = at + 8, o.mesh0_has_nrm = at + 16, o.mesh0_has_uv = at + 17;
+        int has = d[at + 16], has_uv = d[at + 17];
+        at += 22; /* and u32 alpha_tex */
         if (i == 0)
             o.mesh0_pos = at;
-        at += nv * 12 * (has ? 2 : 1);
+        at += nv * 12 * (has ? 2 : 1) + nv * 8 * (has_uv ? 1 : 0);
         if (i == 0)
             o.mesh0_idx = at;
         at += nt * 12;
@@ -322,6 +340,8 @@ static s_offsets_t s_walk(const uint8_t *d)
     o.nlights = at;
     o.light0_type = at + 4;
     at += 4 + 45 * d[at];
+    o.ntexs = at; /* the tiny scene has none */
+    at += 4;
     o.end = at;
     return o;
 }
@@ -378,7 +398,7 @@ static void test_scene_blob(void)
         { 4, 2, 3, 0, "format version 3, this build reads 7", "version 3 (before the conductor)" },
         { 4, 2, 4, 0, "format version 4, this build reads 7", "version 4 (before the thin dielectric)" },
         { 4, 2, 5, 0, "format version 5, this build reads 7", "version 5 (before the distant light)" },
-        { 4, 2, 6, 0, "format version 6, this build reads 7", "version 6 (before the coated diffuse)" },
+        { 4, 2, 6, 0, "format version 6, this build reads 7", "version 6 (before the coat and the textures)" },
         { o.reserved, 2, 1, 0, "reserved", "reserved field" },
         { o.has_camera, 1, 2, 0, "has_camera", "has_camera 2" },
         { o.has_camera + 1, -4, 0, NAN, "camera pos is not a finite number", "camera NaN" },
@@ -408,6 +428,9 @@ static void test_scene_blob(void)
         { o.mesh0_ntris, 8, 1ull << 40, 0, "triangles do not fit", "2^40 triangles" },
         { o.mesh0_ntris, 8, UINT64_MAX / 4, 0, "triangles do not fit", "2^62 triangles" },
         { o.mesh0_has_nrm, 1, 3, 0, "has_normals", "has_normals 3" },
+        { o.mesh0_has_uv, 1, 2, 0, "has_uv 2", "has_uv 2" },
+        { o.mat1_kd_tex, 4, 1, 0, "texture 1 out of range (0 textures)", "kd_tex without textures (finalize)" },
+        { o.ntexs, 4, 0x10000000u, 0, "textures need at least", "texture count" },
         { o.mesh0_pos + 4, -4, 0, NAN, "positions is not a finite", "NaN position" },
         { o.mesh0_idx + 4, 4, 4, 0, "vertex index 4 is out of range", "vertex index" },
         { o.mesh0_mat + 4, 4, 6, 0, "material index 6 is out of range", "triangle material" },

@@ -1,0 +1,36 @@
+/* surface.c: a hit's uv and its material resolved there (surface.h). Kept
+ * apart from accel.c's Embree code: it needs only the hit and the scene. */
+#include "accel/surface.h"
+
+#include <math.h>
+
+#include "scene/texture.h"
+
+void pf_hit_uv(const pf_scene_t *scene, const pf_hit_t *hit, float uv[2])
+{
+    if (hit->geom < scene->nmeshes) {
+        pf_mesh_uv(&scene->meshes[hit->geom], hit->prim, hit->u, hit->v, uv);
+        return;
+    }
+    const pf_sphere_t *sp = &scene->spheres[hit->prim];
+    pf_vec3 d = pf_sub(hit->p, sp->center);
+    float phi = atan2f(d.y, d.x);
+    phi += phi < 0.0f ? 2.0f * PF_PI : 0.0f;
+    float z = d.z / sp->radius;
+    z = z < -1.0f ? -1.0f : z > 1.0f ? 1.0f : z;
+    uv[0] = phi / (2.0f * PF_PI);
+    uv[1] = 1.0f - acosf(z) / PF_PI;
+}
+
+pf_material_t pf_material_at(const pf_scene_t *scene, const pf_hit_t *hit)
+{
+    pf_material_t m = scene->mats[hit->mat];
+    if (!m.kd_tex)
+        return m;
+    float uv[2];
+    pf_hit_uv(scene, hit, uv);
+    /* Clamped to [0, 1] as pbrt-v4's diffuse material does: an albedo above
+     * 1 would make light, and a scaled texture can ask for one. */
+    m.kd = pf_vmin(pf_vmax(pf_texture_eval(scene, m.kd_tex, uv[0], uv[1]), pf_v3s(0.0f)), pf_v3s(1.0f));
+    return m;
+}
