@@ -20,16 +20,16 @@ int pf_envmap_load(const char *path, int mapping, pf_envmap_t *out, size_t *clam
     int rc = pf_image_read_hdr(&img, path, &ierr);
     if (rc)
         return pf_error_set(err, rc, NULL, 0, "environment map: %s", ierr.msg);
-    if (img.width > PF_ENVMAP_MAX_SIDE || img.height > PF_ENVMAP_MAX_SIDE) {
+    int w = img.width, h = img.height;
+    if (w > PF_ENVMAP_MAX_SIDE || h > PF_ENVMAP_MAX_SIDE) {
         pf_image_free(&img);
-        return pf_error_set(err, PF_ERANGE, NULL, 0, "environment map %s is %dx%d: larger than %d on a side", path,
-                            img.width, img.height, PF_ENVMAP_MAX_SIDE);
+        return pf_error_set(err, PF_ERANGE, NULL, 0, "environment map %s is %dx%d: larger than %d on a side", path, w,
+                            h, PF_ENVMAP_MAX_SIDE);
     }
-    if (mapping == PF_ENVMAP_EQUALAREA && img.width != img.height) {
+    if (mapping == PF_ENVMAP_EQUALAREA && w != h) {
         pf_image_free(&img);
         return pf_error_set(err, PF_EPARSE, NULL, 0,
-                            "environment map %s is %dx%d: the equal-area mapping needs a square image", path,
-                            img.width, img.height);
+                            "environment map %s is %dx%d: the equal-area mapping needs a square image", path, w, h);
     }
     size_t n = (size_t)img.width * (size_t)img.height * 3;
     for (size_t k = 0; k < n; k++) {
