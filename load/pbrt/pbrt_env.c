@@ -4,8 +4,11 @@
  * pbrt-v4 uses for every image infinite light; the CTM at the LightSource
  * is the light's frame (renderFromLight: a world direction d looks up the
  * map at CTM^-1 d); radiance = scale * pixel, and with "illuminance" E the
- * scale is multiplied by E / k, k the illuminance the map gives an upward
- * patch in the light's frame (+z), as pbrt-v4 does. "L" with a filename is
+ * scale is multiplied by E / k with pbrt-v4's k: the sum over the pixels of
+ * the upper hemisphere (light frame +z) of lum * cos, times 2 pi / (w h).
+ * An equal-area pixel spans 4 pi / (w h), so k is half the upward
+ * irradiance and the scaled map gives an upward patch 2 E; that is what
+ * pbrt-v4 renders, and its references are what the scenes are compared to. "L" with a filename is
  * an error in pbrt-v4 and here; "portal" is warned and ignored. */
 #include <math.h>
 #include <stdio.h>
@@ -66,7 +69,7 @@ int pf_pbrt_image_infinite(pf_pbrt_t *c, pf_pbrt_params_t *ps, pf_pbrt_loc_t loc
         rc = pf_pbrt_warn(c, loc, "environment map values clamped",
                           "%s: %zu negative or non-finite values in %s read as 0", what, clamped, path);
     if (rc == PF_OK && illum > 0.0) { /* pbrt-v4: a negative or zero illuminance is unset */
-        double k = pf_envmap_integral(&map, pf_v3s(1.0f), 1);
+        double k = 0.5 * pf_envmap_integral(&map, pf_v3s(1.0f), 1); /* pbrt-v4's 2 pi, not 4 pi */
         if (k > 0.0)
             scale *= illum / k;
     }

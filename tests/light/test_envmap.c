@@ -414,7 +414,8 @@ static void s_test_readers(void)
         pf_lights_destroy(&lt);
         pf_scene_destroy(&sc);
     }
-    /* illuminance: the upward irradiance becomes E */
+    /* illuminance E: pbrt-v4 weighs the pixels by 2 pi / (w h), half their
+     * solid angle, so the upward irradiance becomes 2 E */
     snprintf(text, sizeof text,
              "WorldBegin\nLightSource \"infinite\" \"string filename\" \"sky.pfm\" \"float illuminance\" 7\n%s",
              s_pbrt_body);
@@ -423,7 +424,7 @@ static void s_test_readers(void)
     CHECK(sc != NULL, "pbrt with illuminance: %s", err.msg);
     if (sc) {
         double e = pf_envmap_integral(&sc->envmaps[0], sc->lights[0].intensity, 1);
-        CHECK(fabs(e / 7.0 - 1.0) < 1e-4, "illuminance 7 gives an upward irradiance of %g", e);
+        CHECK(fabs(e / 14.0 - 1.0) < 1e-4, "illuminance 7 gives an upward irradiance of %g (pbrt-v4: 14)", e);
         pf_scene_destroy(&sc);
     }
     /* a non-square equal-area map: an error naming the map and file:line */
