@@ -72,7 +72,8 @@ float pf_lights_pdf(const pf_lights_t *self, const pf_scene_t *scene, pf_vec3 x,
  * n is the surface normal at the origin (zero for point, spot, distant and
  * infinite lights; their photons start on a disc outside the scene's
  * bounding sphere, perpendicular to the light's direction, or for an
- * infinite light to a direction uniform over the sphere). */
+ * infinite light to a direction uniform over the sphere, or drawn from its
+ * map's distribution for an image-based one). */
 typedef struct pf_emission {
     pf_ray_t ray;
     pf_vec3 flux;

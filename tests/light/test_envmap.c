@@ -7,7 +7,9 @@
  *       a chi-square test of sampled directions against it, binned by map
  *       pixel; each sample's weight is L / pdf with pdf = pf_lights_sky_pdf;
  *   (c) a map black but for one pixel lights an upward receiver with the
- *       analytic irradiance L dphi (sin^2 t1 - sin^2 t0) / 2;
+ *       analytic irradiance L dphi (sin^2 t1 - sin^2 t0) / 2, and with a
+ *       constant sky L' beside it (the two sampled as one mixture) that plus
+ *       pi L';
  *   (d) the photons' flux: the mean emitted flux is pi R^2 times the map's
  *       integral, and the flux onto an upward quad its irradiance times its
  *       area;
@@ -274,6 +276,30 @@ static void s_test_patch(void)
     CHECK(fabs(irr.mean - want) <= 5.0 * s_stat_se(&irr) + 1e-4 * want &&
               fabs(irr_n.mean - want) <= 5.0 * s_stat_se(&irr_n) + 1e-4 * want,
           "bright pixel: irradiance %.5f / %.5f, expected %.5f", irr.mean, irr_n.mean, want);
+    pf_lights_destroy(&lt);
+    /* with a constant sky beside it: one emitter of both radiances, sampled
+     * by the mixture; the irradiance adds pi Lc */
+    pf_light_t c = { .type = PF_LIGHT_INFINITE, .intensity = pf_v3s(0.3f) };
+    pf_scene_add_light(sc, &c);
+    lt = pf_lights_build(sc);
+    double want2 = want + PI_D * 0.3;
+    s_stat mix = { 0 };
+    long bad = 0;
+    for (long i = 0; i < 100000; i++) {
+        float u[3];
+        s_uniforms(32, (uint64_t)i, u, 3);
+        pf_light_conn_t lc;
+        double v = 0.0;
+        if (pf_lights_sample_direct_at(lt, sc, pf_v3(0, 0, 0), n, u, &lc)) {
+            v = lc.weight.y * fmax(0.0, pf_dot(lc.wi, n));
+            bad += lc.pdf != pf_lights_sky_pdf(lt, n, lc.wi);
+        }
+        s_stat_add(&mix, v);
+    }
+    printf("bright pixel and a constant sky: irradiance %.5f, expected %.5f (5 se = %.2g)\n", mix.mean, want2,
+           5.0 * s_stat_se(&mix));
+    CHECK(bad == 0 && fabs(mix.mean - want2) <= 5.0 * s_stat_se(&mix),
+          "map and constant sky: irradiance %.5f, expected %.5f; %ld pdfs not the mixture's", mix.mean, want2, bad);
     pf_lights_destroy(&lt);
     pf_scene_destroy(&sc);
 }
