@@ -12,7 +12,7 @@
  *       pi L';
  *   (d) the photons' flux: the mean emitted flux is pi R^2 times the map's
  *       integral, and the flux onto an upward quad its irradiance times its
- *       area;
+ *       area; caustic photons aimed at a sphere bring it pi r^2 int L;
  *   (e) the scene blob carries the map bit for bit;
  *   (f) the readers: pbrt-v4 "infinite" with a filename (the CTM turns the
  *       map, scale and illuminance apply), JSON equirect; a non-square map
@@ -348,6 +348,32 @@ static void s_test_photons(void)
     CHECK(fabs(all.mean - PI_D * R * R * lum) <= 1e-3 * PI_D * R * R * lum, "photons: mean flux %.5f, expected %.5f",
           all.mean, PI_D * R * R * lum);
     CHECK(fabs(onto.mean - up) <= 5.0 * s_stat_se(&onto), "photons onto the quad: %.5f, expected %.5f", onto.mean, up);
+    /* caustic photons aimed at a sphere: the flux that reaches it is
+     * pi r^2 int L (every direction's radiance through its cross-section) */
+    pf_target_t t = { pf_v3(0.1f, -0.1f, 0.2f), 0.25f };
+    s_stat aimed = { 0 };
+    long hits = 0;
+    for (long i = 0; i < 400000; i++) {
+        float u[6];
+        s_uniforms(42, (uint64_t)i, u, 6);
+        pf_emission_t e;
+        double f = 0.0;
+        if (pf_lights_emit_targeted(lt, sc, &t, 1, u, &e)) {
+            pf_vec3 oc = pf_sub(t.center, e.ray.o);
+            float along = pf_dot(oc, e.ray.d);
+            if (along > 0.0f && pf_len2(oc) - along * along <= t.radius * t.radius) {
+                f = pf_luminance(e.flux);
+                hits++;
+            }
+        }
+        s_stat_add(&aimed, f);
+    }
+    double want = PI_D * t.radius * t.radius * lum;
+    printf("caustic photons: flux onto the target %.5f, expected pi r^2 int L = %.5f (5 se = %.2g), %ld of 400000 "
+           "hit\n",
+           aimed.mean, want, 5.0 * s_stat_se(&aimed), hits);
+    CHECK(hits > 300000 && fabs(aimed.mean - want) <= 5.0 * s_stat_se(&aimed), "caustic photons: %.5f, expected %.5f",
+          aimed.mean, want);
     pf_lights_destroy(&lt);
     pf_scene_destroy(&sc);
 }
