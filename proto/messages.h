@@ -39,7 +39,7 @@
 #include "scene/scene.h"
 
 #define PF_PROTO_MAGIC 0x4d524650u /* "PFRM" read as little-endian bytes 'P','F','R','M' */
-#define PF_PROTO_VERSION 3 /* 3: settings carry the progressive pass */
+#define PF_PROTO_VERSION 4 /* 3: settings carry the progressive pass; 4: and the pixel filter */
 #define PF_PROTO_HEADER_SIZE 16
 #define PF_PROTO_MAX_STRING PF_WIRE_MAX_STRING
 #define PF_PROTO_CHUNK_SIZE (1u << 20)            /* blob chunk payload */

@@ -17,9 +17,9 @@
  *   u32 nspheres, nspheres x { vec3 center, f32 radius, u32 mat }
  *   u32 nlights,  nlights x  { u8 type, vec3 pos, vec3 intensity, vec3 dir, f32 cos_inner, f32 cos_outer }
  *                             (version 6: types 2 and 3, the distant and infinite lights)
- *                             u32 map    (version 7: an infinite light's map, 1 + index; 0 none)
+ *                             u32 map    (version 8: an infinite light's map, 1 + index; 0 none)
  *   u32 nenvmaps, nenvmaps x { str name, u8 mapping, u32 width, u32 height, 9 f32 to_world,
- *                             9 f32 to_light, width x height x 3 f32 rgb }   (version 7)
+ *                             9 f32 to_light, width x height x 3 f32 rgb }   (version 8)
  * and nothing after.
  *
  * The reader treats the blob as hostile: every count is checked against the

@@ -275,7 +275,7 @@ static s_offsets_t s_walk(const uint8_t *d)
     o.reserved = at;
     at += 2;
     at += 2 + s_str_len_at(d + at); /* path */
-    at += 88;                       /* settings */
+    at += 96;                       /* settings */
     o.has_camera = at;
     at += 1 + 40;
     o.fov_shorter = at;
@@ -375,11 +375,12 @@ static void test_scene_blob(void)
     const s_spatch_t patches[] = {
         { 0, 1, 'X', 0, "bad magic", "magic" },
         { 4, 2, 9, 0, "format version 9", "version" },
-        { 4, 2, 2, 0, "format version 2, this build reads 7", "version 2 (before the lens)" },
-        { 4, 2, 3, 0, "format version 3, this build reads 7", "version 3 (before the conductor)" },
-        { 4, 2, 4, 0, "format version 4, this build reads 7", "version 4 (before the thin dielectric)" },
-        { 4, 2, 5, 0, "format version 5, this build reads 7", "version 5 (before the distant light)" },
-        { 4, 2, 6, 0, "format version 6, this build reads 7", "version 6 (before the environment map)" },
+        { 4, 2, 2, 0, "format version 2, this build reads 8", "version 2 (before the lens)" },
+        { 4, 2, 3, 0, "format version 3, this build reads 8", "version 3 (before the conductor)" },
+        { 4, 2, 4, 0, "format version 4, this build reads 8", "version 4 (before the thin dielectric)" },
+        { 4, 2, 5, 0, "format version 5, this build reads 8", "version 5 (before the distant light)" },
+        { 4, 2, 6, 0, "format version 6, this build reads 8", "version 6 (before the pixel filter)" },
+        { 4, 2, 7, 0, "format version 7, this build reads 8", "version 7 (before the environment map)" },
         { o.reserved, 2, 1, 0, "reserved", "reserved field" },
         { o.has_camera, 1, 2, 0, "has_camera", "has_camera 2" },
         { o.has_camera + 1, -4, 0, NAN, "camera pos is not a finite number", "camera NaN" },
