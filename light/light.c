@@ -16,21 +16,32 @@
  * the same for a direction drawn uniformly over the sphere; its direct light
  * samples directions cosine-weighted about the receiver's normal (uniformly
  * over the sphere without one), with that pdf for MIS at rough conductors
- * (pf_lights_sky_pdf). All infinite lights make one entry, the last, of
- * their summed radiance. */
+ * (pf_lights_sky_pdf). All constant infinite lights make one entry, the
+ * last, of their summed radiance.
+ *
+ * An image-based infinite light (one with a map) is an entry of its own, of
+ * power pi R^2 times the integral of its luminance over the sphere; its
+ * directions come from its map's distribution (envlight.c), for direct light
+ * and photons alike. The sky a ray sees is the sum of every infinite
+ * light's, and direct light treats that sum as one emitter sampled by a
+ * mixture: whichever sky entry is picked draws the direction, and the
+ * sample weighs the whole sky's radiance by the mixture's pdf
+ * (pf_lights_sky_pdf), which is also what a BSDF ray that escapes is
+ * weighed against. Each map emits its own photons. */
 #include "light/light.h"
 
 #include <float.h>
 #include <stdlib.h>
 
 #include "base/sampling.h"
+#include "light/envlight.h"
 
-typedef enum { S_AREA, S_POINT, S_DISTANT, S_INFINITE } s_kind;
+typedef enum { S_AREA, S_POINT, S_DISTANT, S_INFINITE, S_ENVMAP } s_kind;
 
 typedef struct s_entry {
     s_kind kind;
     uint32_t mesh, tri; /* area */
-    uint32_t light;     /* point, spot, distant or infinite */
+    uint32_t light;     /* point, spot, distant or infinite; the index into env for S_ENVMAP */
     float area;
     /* A point light outside the scene's bounding sphere emits photons only
      * into the cone that holds the sphere (cos_max > -1; axis towards the
@@ -51,6 +62,8 @@ struct pf_lights {
     float radius;
     pf_vec3 sky;   /* the radiance of the infinite lights, summed: one entry, the last */
     float sky_pmf; /* that entry's probability (0: none) */
+    pf_envlight_t *env; /* the image-based infinite lights */
+    size_t nenv;
 };
 
 float pf_spot_falloff(const pf_light_t *l, float cos_theta)
@@ -110,6 +123,44 @@ static void s_aim_at_scene(const pf_lights_t *self, const pf_scene_t *scene, s_e
     e->cos_max = sqrtf(1.0f - (r / d) * (r / d));
 }
 
+/* Adds the entry of an image-based infinite light li and its
+ * power to *acc. A map without light, or a scene without geometry, adds
+ * nothing. Nonzero when out of memory (self->env is then NULL with nenv
+ * set, which pf_lights_build reports). */
+static int s_add_envmap(pf_lights_t *self, const pf_scene_t *scene, const pf_light_t *li, double *acc)
+{
+    if (!self->env) {
+        size_t k = 0;
+        for (size_t i = 0; i < scene->nlights; i++)
+            k += scene->lights[i].type == PF_LIGHT_INFINITE && scene->lights[i].map;
+        self->env = calloc(k, sizeof *self->env);
+        if (!self->env) {
+            self->nenv = k;
+            return 1;
+        }
+    }
+    if (!(self->radius > 0.0f))
+        return 0;
+    pf_envlight_t *e = &self->env[self->nenv];
+    if (pf_envlight_init(e, &scene->envmaps[li->map - 1], li->intensity)) {
+        for (size_t i = 0; i < self->nenv; i++)
+            pf_envlight_free(&self->env[i]);
+        free(self->env);
+        self->env = NULL;
+        self->nenv = 1;
+        return 1;
+    }
+    double p = PF_PI * (double)self->radius * (double)self->radius * e->lum;
+    if (!(p > 0.0) || !(e->total > 0.0)) {
+        pf_envlight_free(e);
+        return 0;
+    }
+    self->entries[self->n] = (s_entry){ .kind = S_ENVMAP, .light = (uint32_t)self->nenv++, .cos_max = -1.0f };
+    self->cdf[self->n++] = *acc;
+    *acc += p;
+    return 0;
+}
+
 pf_lights_t *pf_lights_build(const pf_scene_t *scene)
 {
     pf_lights_t *self = calloc(1, sizeof *self);
@@ -150,6 +201,11 @@ pf_lights_t *pf_lights_build(const pf_scene_t *scene)
         double p = s_light_power(li, self->radius);
         if (!(p > 0.0))
             continue;
+        if (li->type == PF_LIGHT_INFINITE && li->map) {
+            if (s_add_envmap(self, scene, li, &acc))
+                break;
+            continue;
+        }
         if (li->type == PF_LIGHT_INFINITE) { /* constant skies add up to one */
             self->sky = pf_add(self->sky, li->intensity);
             continue;
@@ -169,12 +225,19 @@ pf_lights_t *pf_lights_build(const pf_scene_t *scene)
     } else {
         self->sky = pf_v3s(0.0f); /* no geometry to light: no sky either */
     }
+    if (self->nenv && !self->env) { /* out of memory in s_add_envmap */
+        pf_lights_destroy(&self);
+        return NULL;
+    }
     self->power = acc;
     for (size_t i = 0; i < self->n; i++)
         self->cdf[i] /= acc;
     self->cdf[self->n] = 1.0;
     if (psky > 0.0)
         self->sky_pmf = (float)(1.0 - self->cdf[self->n - 1]);
+    for (size_t i = 0; i < self->n; i++)
+        if (self->entries[i].kind == S_ENVMAP)
+            self->env[self->entries[i].light].pmf = (float)(self->cdf[i + 1] - self->cdf[i]);
     return self;
 }
 
@@ -184,6 +247,9 @@ void pf_lights_destroy(pf_lights_t **self_p)
         return;
     free((*self_p)->entries);
     free((*self_p)->cdf);
+    for (size_t i = 0; (*self_p)->env && i < (*self_p)->nenv; i++)
+        pf_envlight_free(&(*self_p)->env[i]);
+    free((*self_p)->env);
     free(*self_p);
     *self_p = NULL;
 }
@@ -191,15 +257,42 @@ void pf_lights_destroy(pf_lights_t **self_p)
 double pf_lights_power(const pf_lights_t *self) { return self->power; }
 pf_vec3 pf_lights_sky(const pf_lights_t *self, pf_vec3 d)
 {
-    (void)d; /* constant for now; an environment image would look d up */
-    return self->sky;
+    pf_vec3 L = self->sky;
+    for (size_t i = 0; i < self->nenv; i++)
+        L = pf_add(L, pf_envlight_le(&self->env[i], d));
+    return L;
 }
 
 float pf_lights_sky_pdf(const pf_lights_t *self, pf_vec3 n, pf_vec3 d)
 {
-    if (pf_is_black(n))
-        return self->sky_pmf / (4.0f * PF_PI);
-    return self->sky_pmf * fmaxf(0.0f, pf_dot(n, d)) * PF_INV_PI;
+    float pdf = pf_is_black(n) ? self->sky_pmf / (4.0f * PF_PI) : self->sky_pmf * fmaxf(0.0f, pf_dot(n, d)) * PF_INV_PI;
+    for (size_t i = 0; i < self->nenv; i++)
+        pdf += self->env[i].pmf * pf_envlight_pdf(&self->env[i], d);
+    return pdf;
+}
+
+/* A sky direction drawn by the picked sky entry e (constant: uniform, or
+ * cosine about n when n is not zero; a map: its distribution), weighed as a
+ * sample of the mixture of every sky entry (see the top). 0 when it carries
+ * nothing. */
+static int s_sky_mixture(const pf_lights_t *self, const s_entry *e, pf_vec3 n, const float u[3], pf_light_conn_t *out)
+{
+    pf_vec3 wi;
+    if (e->kind == S_ENVMAP)
+        wi = pf_envlight_sample(&self->env[e->light], u[1], u[2]);
+    else if (pf_is_black(n))
+        wi = pf_sample_sphere(u[1], u[2]);
+    else
+        wi = pf_to_world(pf_sample_cosine(u[1], u[2]), n);
+    float pdf = pf_lights_sky_pdf(self, n, wi);
+    pf_vec3 L = pf_lights_sky(self, wi);
+    if (!(pdf > 0.0f) || pf_is_black(L))
+        return 0;
+    out->wi = wi;
+    out->dist = INFINITY;
+    out->weight = pf_scale(L, 1.0f / pdf);
+    out->pdf = pdf;
+    return 1;
 }
 size_t pf_lights_count(const pf_lights_t *self) { return self->n; }
 
@@ -268,6 +361,8 @@ int pf_lights_sample_direct_at(const pf_lights_t *self, const pf_scene_t *scene,
         out->pdf = pdf_area * d2 / cos_l;
         return 1;
     }
+    if (e->kind == S_ENVMAP || (e->kind == S_INFINITE && self->nenv))
+        return s_sky_mixture(self, e, n, u, out);
     if (e->kind == S_INFINITE) {
         out->dist = INFINITY;
         if (pf_is_black(n)) { /* uniform over the sphere: L / (pdf pmf), pdf = 1 / (4 pi) */
@@ -379,9 +474,22 @@ int pf_lights_emit(const pf_lights_t *self, const pf_scene_t *scene, const float
         out->n = n;
         return 1;
     }
-    const pf_light_t *l = e->kind == S_INFINITE ? NULL : &scene->lights[e->light]; /* the sky: self->sky */
     out->perr = pf_v3s(0.0f);
     out->n = pf_v3s(0.0f);
+    if (e->kind == S_ENVMAP) {
+        /* a direction towards the sky from the map's distribution, the photon
+         * travelling against it: L pi R^2 / (pdf_dir pmf) */
+        const pf_envlight_t *env = &self->env[e->light];
+        pf_vec3 d = pf_envlight_sample(env, u[1], u[2]);
+        float pdf = pf_envlight_pdf(env, d);
+        if (!(pdf > 0.0f))
+            return 0;
+        pf_vec3 dir = pf_neg(d);
+        out->ray = (pf_ray_t){ s_disc_point(self, dir, self->center, self->radius, u[3], u[4]), dir };
+        out->flux = pf_scale(pf_envlight_le(env, d), PF_PI * self->radius * self->radius / (pdf * (float)pmf));
+        return 1;
+    }
+    const pf_light_t *l = e->kind == S_INFINITE ? NULL : &scene->lights[e->light]; /* the sky: self->sky */
     if (e->kind == S_DISTANT) {
         /* E / (pdf_area pmf), pdf_area = 1 / (pi R^2) over the disc. */
         out->ray = (pf_ray_t){ s_disc_point(self, l->dir, self->center, self->radius, u[3], u[4]), l->dir };
@@ -516,6 +624,15 @@ int pf_lights_emit_targeted(const pf_lights_t *self, const pf_scene_t *scene, co
     if (e->kind == S_DISTANT) {
         const pf_light_t *ld = &scene->lights[e->light];
         return s_distant_targeted(self, ld->dir, ld->intensity, pmf, targets, ntargets, u, out);
+    }
+    if (e->kind == S_ENVMAP) { /* a direction from the map's distribution: irradiance L / pdf along it */
+        const pf_envlight_t *env = &self->env[e->light];
+        pf_vec3 d = pf_envlight_sample(env, u[1], u[2]);
+        float pdf = pf_envlight_pdf(env, d);
+        if (!(pdf > 0.0f))
+            return 0;
+        return s_distant_targeted(self, pf_neg(d), pf_scale(pf_envlight_le(env, d), 1.0f / pdf), pmf, targets,
+                                  ntargets, u, out);
     }
     if (e->kind == S_INFINITE) /* a direction uniform over the sphere, pdf 1 / (4 pi) */
         return s_distant_targeted(self, pf_sample_sphere(u[1], u[2]), pf_scale(self->sky, 4.0f * PF_PI), pmf,

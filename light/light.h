@@ -1,6 +1,7 @@
 /* light.h: the scene's emitters in one power-weighted table: every emissive
  * triangle (one-sided area light along its face normal), point, spot,
- * distant and infinite (constant sky) lights. Used for direct-light sampling (worker) and photon emission
+ * distant and infinite lights (a constant sky, or an image-based one:
+ * envlight.h). Used for direct-light sampling (worker) and photon emission
  * (coordinator). Built once, then read-only from any thread. */
 #ifndef PF_LIGHT_H
 #define PF_LIGHT_H
@@ -19,13 +20,14 @@ pf_lights_t *pf_lights_build(const pf_scene_t *scene);
 void pf_lights_destroy(pf_lights_t **self_p);
 
 /* The radiance a ray leaving the scene along d sees: the infinite lights'
- * (zero without any). */
+ * summed, maps looked up along d (zero without any). */
 pf_vec3 pf_lights_sky(const pf_lights_t *self, pf_vec3 d);
 
 /* The solid-angle pdf with which pf_lights_sample_direct_at, given the
  * normal n (zero: pf_lights_sample_direct), returns the sky direction d:
  * the sky's probability times its direction pdf; 0 without a sky. (All
- * infinite lights make one emitter: their radiances add.) */
+ * infinite lights make one emitter: their radiances add; with maps, the
+ * mixture of every sky entry's pmf times its pdf.) */
 float pf_lights_sky_pdf(const pf_lights_t *self, pf_vec3 n, pf_vec3 d);
 
 /* Total emitted power (W, luminance-weighted) and the number of emitters. */
@@ -48,11 +50,12 @@ typedef struct pf_light_conn {
 int pf_lights_sample_direct(const pf_lights_t *self, const pf_scene_t *scene, pf_vec3 x, const float u[3],
                             pf_light_conn_t *out);
 
-/* The same at a receiver whose (shading) normal n is known: an infinite
- * light then draws its directions cosine-weighted about n rather than
+/* The same at a receiver whose (shading) normal n is known: a constant
+ * infinite light then draws its directions cosine-weighted about n rather than
  * uniformly over the sphere (what lies below n gets no sample; the caller
  * weighs by cos about n, so that is no loss). n zero: as
- * pf_lights_sample_direct. Every other light samples as there. */
+ * pf_lights_sample_direct. A map draws from its own distribution either
+ * way. Every other light samples as there. */
 int pf_lights_sample_direct_at(const pf_lights_t *self, const pf_scene_t *scene, pf_vec3 x, pf_vec3 n,
                                const float u[3], pf_light_conn_t *out);
 
@@ -69,7 +72,8 @@ float pf_lights_pdf(const pf_lights_t *self, const pf_scene_t *scene, pf_vec3 x,
  * n is the surface normal at the origin (zero for point, spot, distant and
  * infinite lights; their photons start on a disc outside the scene's
  * bounding sphere, perpendicular to the light's direction, or for an
- * infinite light to a direction uniform over the sphere). */
+ * infinite light to a direction uniform over the sphere, or drawn from its
+ * map's distribution for an image-based one). */
 typedef struct pf_emission {
     pf_ray_t ray;
     pf_vec3 flux;

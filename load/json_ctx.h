@@ -3,7 +3,8 @@
  *
  *   scene_json_read.c  the file's text, the node-to-line table, error
  *                      reports at file:line, and typed access to values;
- *   scene_json.c       the scene's sections and pf_scene_json_load.
+ *   scene_json.c       the scene's sections and pf_scene_json_load;
+ *   scene_json_env.c   the image-based infinite light.
  *
  * Nothing outside them includes this header; the public interface is
  * pf_scene_json_load in load.h. The types and the S_FAIL_ macros keep the
@@ -99,5 +100,10 @@ int pf_json_in_range(pf_vec3 v);
 int pf_json_position(s_ctx_t *c, const cJSON *v, const char *key, const char *what, pf_vec3 *out);
 /* An RGB colour (3 numbers, or one for grey), each channel in [lo, hi]. */
 int pf_json_rgb(s_ctx_t *c, const cJSON *v, const char *key, const char *what, float lo, float hi, pf_vec3 *out);
+
+/* ---- scene_json_env.c ---- */
+
+/* An infinite light with "image": reads the map into the scene and fills *l. */
+int pf_json_envlight(s_ctx_t *c, const cJSON *o, pf_light_t *l);
 
 #endif

@@ -853,6 +853,8 @@ static int s_light(s_ctx_t *c, const cJSON *o)
             rc = pf_json_rgb(c, vi, "irradiance", what, 0.0f, FLT_MAX, &l.intensity);
         if (!rc)
             l.dir = pf_norm(l.dir);
+    } else if (strcmp(type, "infinite") == 0 && pf_json_get(o, "image")) {
+        rc = pf_json_envlight(c, o, &l); /* scene_json_env.c */
     } else if (strcmp(type, "infinite") == 0) {
         static const char *const keys[] = { "type", "radiance", NULL };
         const char *what = "infinite light";

@@ -17,12 +17,15 @@
  *                             (has_uv) nverts x 2 f32 uv, ntris x 3 u32 idx, ntris x u32 mat }
  *                             (version 7: has_uv, alpha_tex, uv)
  *   u32 nspheres, nspheres x { vec3 center, f32 radius, u32 mat }
- *   u32 nlights,  nlights x  { u8 type, vec3 pos, vec3 intensity, vec3 dir, f32 cos_inner, f32 cos_outer }
- *                             (version 6: types 2 and 3, the distant and infinite lights)
+ *   u32 nlights,  nlights x  { u8 type, vec3 pos, vec3 intensity, vec3 dir, f32 cos_inner, f32 cos_outer,
+ *                             u32 map }  (version 6: types 2 and 3, the distant and infinite lights;
+ *                             version 8: map, an infinite light's map, 1 + index; 0 none)
  *   u32 ntexs,    ntexs x    { str name, u8 type, f32 su, f32 sv, f32 du, f32 dv,
  *                              3 x { vec3 c, u32 ref }, u8 wrap, u8 srgb, f32 scale, u8 invert,
  *                              u8 pixels (0 none, 1 8-bit, 2 float), u32 width, u32 height,
  *                              width x height x 3 u8 or f32 }   (version 7: the textures)
+ *   u32 nenvmaps, nenvmaps x { str name, u8 mapping, u32 width, u32 height, 9 f32 to_world,
+ *                             9 f32 to_light, width x height x 3 f32 rgb }   (version 8)
  * and nothing after.
  *
  * The reader treats the blob as hostile: every count is checked against the
@@ -53,7 +56,8 @@
 #define S_VERTEX 12
 #define S_TRIANGLE 16
 #define S_SPHERE 20
-#define S_LIGHT (1 + 11 * 4)
+#define S_LIGHT (1 + 11 * 4 + 4)
+#define S_MIN_ENVMAP (2 + 1 + 4 + 4 + 18 * 4)
 /* The settings field group (its layout is in messages.c). */
 #define S_SETTINGS 96
 
@@ -187,8 +191,24 @@ int pf_sceneblob_write(const pf_scene_t *scene, pf_buf_t *out)
         W(s_wr_vec3(out, l->dir));
         W(pf_wr_f32(out, l->cos_inner));
         W(pf_wr_f32(out, l->cos_outer));
+        W(pf_wr_u32(out, l->map));
     }
     W(s_wr_textures(out, scene));
+    W(pf_wr_u32(out, (uint32_t)scene->nenvmaps));
+    for (size_t i = 0; i < scene->nenvmaps && rc == 0; i++) {
+        const pf_envmap_t *m = &scene->envmaps[i];
+        W(s_wr_name(out, m->name, sizeof m->name));
+        W(pf_wr_u8(out, (uint8_t)m->mapping));
+        W(pf_wr_u32(out, (uint32_t)m->width));
+        W(pf_wr_u32(out, (uint32_t)m->height));
+        for (int k = 0; k < 9; k++)
+            W(pf_wr_f32(out, m->to_world[k]));
+        for (int k = 0; k < 9; k++)
+            W(pf_wr_f32(out, m->to_light[k]));
+        size_t n = (size_t)m->width * (size_t)m->height * 3;
+        for (size_t k = 0; k < n && rc == 0; k++)
+            W(pf_wr_f32(out, m->rgb[k]));
+    }
     if (rc != 0)
         out->len = 0;
     return rc;
@@ -470,6 +490,7 @@ static void s_read_lights(s_in_t *in, pf_scene_t *scene)
         l.dir = s_vec3(in, what, "dir");
         l.cos_inner = s_f32(in, what, "cos_inner");
         l.cos_outer = s_f32(in, what, "cos_outer");
+        l.map = s_u32(in, what, "map"); /* checked against the maps by finalize */
         if (!in->status && pf_scene_add_light(scene, &l) != PF_OK)
             s_fail(in, PF_ENOMEM, "out of memory for %s", what);
     }
@@ -531,6 +552,49 @@ static void s_read_textures(s_in_t *in, pf_scene_t *scene)
         if (!in->status && pf_scene_add_texture(scene, &t) < 0)
             s_fail(in, PF_ENOMEM, "out of memory for %s", what);
         pf_texture_free(&t);
+    }
+}
+
+/* The environment maps: sizes checked against the bytes left before the
+ * pixels are allocated; the pixels' range and the mapping's square by
+ * finalize. */
+static void s_read_envmaps(s_in_t *in, pf_scene_t *scene)
+{
+    uint32_t n = s_u32(in, "envmaps", "count");
+    if (!s_count_fits(in, n, S_MIN_ENVMAP, "envmaps"))
+        return;
+    for (uint32_t i = 0; i < n && !in->status; i++) {
+        char what[32];
+        snprintf(what, sizeof what, "envmap %" PRIu32, i);
+        pf_envmap_t m;
+        memset(&m, 0, sizeof m);
+        s_str(in, what, "name", m.name, sizeof m.name);
+        m.mapping = s_u8(in, what, "mapping");
+        uint32_t w = s_u32(in, what, "width"), h = s_u32(in, what, "height");
+        for (int k = 0; k < 9; k++)
+            m.to_world[k] = s_f32(in, what, "to_world");
+        for (int k = 0; k < 9; k++)
+            m.to_light[k] = s_f32(in, what, "to_light");
+        if (!in->status && (w == 0 || h == 0 || w > PF_ENVMAP_MAX_SIDE || h > PF_ENVMAP_MAX_SIDE))
+            s_fail(in, PF_EPARSE, "%s size %" PRIu32 "x%" PRIu32 " is out of range", what, w, h);
+        uint64_t nf = (uint64_t)w * h * 3;
+        if (in->status || !s_count_fits(in, nf, 4, "envmap values"))
+            return;
+        m.width = (int)w;
+        m.height = (int)h;
+        m.rgb = malloc(nf * sizeof *m.rgb);
+        if (!m.rgb) {
+            s_fail(in, PF_ENOMEM, "out of memory for %s", what);
+            return;
+        }
+        for (uint64_t k = 0; k < nf; k++)
+            m.rgb[k] = pf_rd_f32(&in->r);
+        if (in->r.err)
+            s_fail(in, PF_EPARSE, "%s holds a non-finite value", what);
+        if (pf_scene_add_envmap(scene, &m) < 0) {
+            s_fail(in, PF_ENOMEM, "out of memory for %s", what);
+            free(m.rgb);
+        }
     }
 }
 
@@ -597,8 +661,9 @@ pf_scene_t *pf_sceneblob_read(const uint8_t *data, size_t len, pf_error_t *err)
     s_read_spheres(&in, scene);
     s_read_lights(&in, scene);
     s_read_textures(&in, scene);
+    s_read_envmaps(&in, scene);
     if (!in.status && in.r.left > 0)
-        s_fail(&in, PF_EPARSE, "%zu trailing bytes after the textures", in.r.left);
+        s_fail(&in, PF_EPARSE, "%zu trailing bytes after the environment maps", in.r.left);
 
     if (!in.status) {
         /* Finalize reports its errors under the scene's path; name the blob. */

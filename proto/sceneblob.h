@@ -15,9 +15,10 @@
  * which an older worker would refuse as malformed; 6: light types 2 and 3,
  * the distant and the infinite light (same record); 7: materials gained
  * thickness (the coat's) and kd_tex, meshes uv and alpha_tex, the scene its
- * textures, the settings the pixel filter (filter_box, filter_tent). Older
- * blobs are refused. */
-#define PF_SCENEBLOB_VERSION 7
+ * textures, the settings the pixel filter (filter_box, filter_tent); 8:
+ * lights gained map, and the environment maps follow them. Older blobs are
+ * refused. */
+#define PF_SCENEBLOB_VERSION 8
 
 /* Serializes a finalized scene into out (reset first). 0 or PF_ENOMEM. */
 int pf_sceneblob_write(const pf_scene_t *scene, pf_buf_t *out);

@@ -63,12 +63,13 @@
  * (smooth: a mirror, as S); gather rays end at it as at D. Rough glass is
  * S taken as a random branch (a microfacet normal drawn per hit).
  *
- * Distant and infinite lights (the sun and a constant sky) fit the same
+ * Distant and infinite lights (the sun and a constant or image-based sky) fit the same
  * rows. The sun is a delta: only light sampling (direct) and photons reach
  * it, never a ray. The sky is an emitter every escaping ray reaches, as if
  * it were an area light's front at infinity: a camera path through S only
  * that escapes sees it (emitted, L S* E); x's light sampling draws
- * directions cosine-weighted about x's normal (direct, L D S* E), and a
+ * directions cosine-weighted about x's normal, or from an image sky's own
+ * distribution (direct, L D S* E; light/light.c), and a
  * rough conductor's BSDF ray that escapes counts the sky with its MIS weight
  * (as it counts an emitter it hits); gather rays that escape count nothing (L D E is
  * direct, L (S|C)+ D E caustic: the caustic photons come from the sky too);

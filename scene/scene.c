@@ -140,6 +140,9 @@ void pf_scene_destroy(pf_scene_t **self_p)
     for (size_t i = 0; i < self->ntexs; i++)
         pf_texture_free(&self->texs[i]);
     free(self->texs);
+    for (size_t i = 0; i < self->nenvmaps; i++)
+        free(self->envmaps[i].rgb);
+    free(self->envmaps);
     free(self);
     *self_p = NULL;
 }
@@ -182,6 +185,40 @@ int pf_scene_add_light(pf_scene_t *self, const pf_light_t *light)
     if (pf_reserve((void **)&self->lights, &self->cap_lights, self->nlights + 1, sizeof *light))
         return PF_ENOMEM;
     self->lights[self->nlights++] = *light;
+    return PF_OK;
+}
+
+int pf_scene_add_envmap(pf_scene_t *self, pf_envmap_t *map)
+{
+    if (pf_reserve((void **)&self->envmaps, &self->cap_envmaps, self->nenvmaps + 1, sizeof *map))
+        return PF_ENOMEM;
+    self->envmaps[self->nenvmaps] = *map;
+    memset(map, 0, sizeof *map);
+    return (int)self->nenvmaps++;
+}
+
+/* Checks an environment image: its size (square for the equal-area
+ * mapping), frame and pixels (finite, >= 0). */
+static int s_check_envmap(const pf_envmap_t *m, size_t i, const char *file, pf_error_t *err)
+{
+    if (!(m->width > 0 && m->height > 0 && m->width <= PF_ENVMAP_MAX_SIDE && m->height <= PF_ENVMAP_MAX_SIDE) ||
+        !m->rgb || (unsigned)m->mapping > PF_ENVMAP_MAPPING_LAST)
+        return pf_error_set(err, PF_EPARSE, file, 0, "environment map %zu (%s): bad size %dx%d or mapping %d", i,
+                            m->name, m->width, m->height, m->mapping);
+    if (m->mapping == PF_ENVMAP_EQUALAREA && m->width != m->height)
+        return pf_error_set(err, PF_EPARSE, file, 0,
+                            "environment map %zu (%s) is %dx%d: the equal-area mapping needs a square image", i,
+                            m->name, m->width, m->height);
+    for (int k = 0; k < 9; k++)
+        if (!isfinite(m->to_world[k]) || !isfinite(m->to_light[k]))
+            return pf_error_set(err, PF_EPARSE, file, 0, "environment map %zu (%s): its frame is not finite", i,
+                                m->name);
+    size_t n = (size_t)m->width * (size_t)m->height * 3;
+    for (size_t k = 0; k < n; k++)
+        if (!(m->rgb[k] >= 0.0f) || !isfinite(m->rgb[k]))
+            return pf_error_set(err, PF_ERANGE, file, 0,
+                                "environment map %zu (%s): pixel %zu holds %g (values must be finite and >= 0)", i,
+                                m->name, k / 3, (double)m->rgb[k]);
     return PF_OK;
 }
 
@@ -473,6 +510,14 @@ int pf_scene_finalize(pf_scene_t *self, pf_error_t *err)
             return pf_error_set(err, PF_ERANGE, file, 0,
                                 "light %zu: position must be finite and within +-1e18, intensity finite and >= 0, "
                                 "direction (spot, distant) finite and not zero", l);
+        if (li->map && (li->type != PF_LIGHT_INFINITE || li->map > self->nenvmaps))
+            return pf_error_set(err, PF_EPARSE, file, 0, "light %zu: environment map %u does not exist (%zu maps)",
+                                l, (unsigned)li->map, self->nenvmaps);
+    }
+    for (size_t i = 0; i < self->nenvmaps; i++) {
+        int rc = s_check_envmap(&self->envmaps[i], i, file, err);
+        if (rc)
+            return rc;
     }
     int emitters = (int)self->nlights;
     for (size_t mi = 0; mi < self->nmeshes && !emitters; mi++)

@@ -11,6 +11,7 @@
 
 #include "base/status.h"
 #include "base/vec.h"
+#include "scene/envmap.h"
 
 /* Material kinds (the last is PF_MAT_LAST). Every kind may also emit (le), one-sided along the face
  * normal given by the triangle's counter-clockwise winding. */
@@ -128,7 +129,9 @@ typedef enum { PF_LIGHT_POINT = 0, PF_LIGHT_SPOT = 1, PF_LIGHT_DISTANT = 2, PF_L
  * far away: intensity is then its irradiance on a surface perpendicular to
  * dir (W/m^2 per channel), and pos is unused. An infinite light (a
  * constant sky) surrounds the scene: every ray that escapes sees the
- * radiance in intensity; pos and dir are unused. */
+ * radiance in intensity; pos and dir are unused. An infinite light with a
+ * map is an image-based sky: its radiance is intensity (the scale) times
+ * the map's pixel in the direction seen (scene/envmap.h). */
 typedef struct pf_light {
     pf_light_type type;
     pf_vec3 pos;
@@ -137,6 +140,7 @@ typedef struct pf_light {
     pf_vec3 dir;        /* spot axis, or the direction a distant light's light travels; unit */
     float cos_inner;    /* spot: full intensity inside this cone */
     float cos_outer;    /* spot: zero outside; smoothstep between */
+    uint32_t map;       /* infinite: 1 + the index of its image in pf_scene_t.envmaps; 0: constant */
 } pf_light_t;
 
 /* The camera. All-zero extras give the pinhole camera of the JSON format:
@@ -219,6 +223,8 @@ typedef struct pf_scene {
     size_t nlights, cap_lights;
     pf_texture_t *texs;       /* the textures materials refer to (scene/texture.h) */
     size_t ntexs, cap_texs;
+    pf_envmap_t *envmaps;     /* the images of image-based infinite lights */
+    size_t nenvmaps, cap_envmaps;
     pf_camera_desc_t camera;
     int has_camera;
     pf_settings_t settings;
@@ -237,6 +243,9 @@ int pf_scene_find_material(const pf_scene_t *self, const char *name);
 int pf_scene_add_mesh(pf_scene_t *self, pf_mesh_t *mesh);
 int pf_scene_add_sphere(pf_scene_t *self, const pf_sphere_t *sphere);
 int pf_scene_add_light(pf_scene_t *self, const pf_light_t *light);
+/* Appends an environment image, taking ownership of its pixels (and zeroing
+ * *map); returns its index (>= 0) or PF_ENOMEM. */
+int pf_scene_add_envmap(pf_scene_t *self, pf_envmap_t *map);
 /* Frees a mesh's arrays (for meshes not handed to a scene). */
 void pf_mesh_free(pf_mesh_t *mesh);
 

@@ -364,6 +364,12 @@ int pf_pbrt_color_texture(pf_pbrt_t *c, pf_pbrt_param_t *p, uint32_t *ref);
 int pf_pbrt_alpha_texture(pf_pbrt_t *c, pf_pbrt_params_t *ps, uint32_t *ref);
 int pf_pbrt_area_light(pf_pbrt_t *c, const char *type, pf_pbrt_params_t *ps, pf_pbrt_loc_t loc);
 int pf_pbrt_light(pf_pbrt_t *c, const char *type, pf_pbrt_params_t *ps, pf_pbrt_loc_t loc);
+/* ---- pbrt_env.c ---- */
+
+/* LightSource "infinite" with "filename" file (its other parameters in ps):
+ * reads the map and adds an image-based infinite light. */
+int pf_pbrt_image_infinite(pf_pbrt_t *c, pf_pbrt_params_t *ps, pf_pbrt_loc_t loc, const char *file);
+
 /* The pair index for the current material and the area light area (-1)
  * emitting le. */
 int pf_pbrt_pair(pf_pbrt_t *c, int area, pf_vec3 le, pf_pbrt_loc_t loc);

@@ -37,8 +37,8 @@
  * turns that direction), irradiance L * scale, times "illuminance" when
  * given (pbrt-v4 normalizes L to one nit, which an RGB L already is here);
  * "infinite" without "filename" becomes a constant sky of radiance L *
- * scale (times illuminance / pi when given); with an image it and the other
- * light types are warned as not rendered yet. */
+ * scale (times illuminance / pi when given); with an image, an image-based
+ * sky (pbrt_env.c); the other light types are warned as not rendered yet. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -575,7 +575,7 @@ static int s_distant(pf_pbrt_t *c, pf_pbrt_params_t *ps, pf_pbrt_loc_t loc)
 }
 
 /* LightSource "infinite" without an image: a constant sky. 1 when it has an
- * image (not rendered yet: the caller warns), else 0 or a status. */
+ * image (the caller reads it: pbrt_env.c), else 0 or a status. */
 static int s_infinite(pf_pbrt_t *c, pf_pbrt_params_t *ps, pf_pbrt_loc_t loc, int *image)
 {
     const char *what = "LightSource \"infinite\"";
@@ -616,11 +616,9 @@ int pf_pbrt_light(pf_pbrt_t *c, const char *type, pf_pbrt_params_t *ps, pf_pbrt_
         int image = 0, rc = s_infinite(c, ps, loc, &image);
         if (rc || !image)
             return rc;
-        for (size_t k = 0; k < ps->n; k++)
-            ps->p[k].used = 1;
-        return pf_pbrt_warn(c, loc, "light type infinite with an image (not rendered yet)",
-                            "LightSource \"infinite\" with \"filename\" (an environment map) is not rendered: "
-                            "it adds no light");
+        const char *file = "";
+        pf_pbrt_get_string(c, ps, "filename", "", &file);
+        return pf_pbrt_image_infinite(c, ps, loc, file); /* pbrt_env.c */
     }
     if (!strcmp(type, "point") || !strcmp(type, "spot"))
         return s_point_spot(c, type[0] == 's', ps, loc);

@@ -356,7 +356,6 @@ static void test_lights(void)
                                    "LightSource \"distant\" \"rgb L\" [1 2 3] \"float illuminance\" 2 \"point3 from\" [0 0 0]\n"
                                    "  \"point3 to\" [1 0 0]\nRotate 90 0 0 1\nLightSource \"distant\" \"float scale\" 3\n"
                                    "LightSource \"infinite\" \"rgb L\" [1 2 3] \"float illuminance\" 6.2831853\n"
-                                   "LightSource \"infinite\" \"string filename\" \"sky.pfm\"\n"
                                    "AreaLightSource \"diffuse\" \"blackbody L\" 3000 \"float power\" 10\n"
                                    "Shape \"trianglemesh\" \"point3 P\" [0 0 0  2 0 0  0 2 0]\n",
                             0, &rep, &err);
@@ -381,7 +380,7 @@ static void test_lights(void)
                   fabsf(sp->intensity.z / sp->intensity.y - 1.0f) < 0.1f,
               "6500 K is near white: %g %g %g", sp->intensity.x, sp->intensity.y, sp->intensity.z);
     }
-    CHECK(s_warned(&rep, "light type distant") == 0 && s_warned(&rep, "light type infinite with an image") == 1);
+    CHECK(s_warned(&rep, "light type distant") == 0); /* image infinite lights: tests/light/test_envmap.c */
     pf_scene_destroy(&s);
 }
 
@@ -713,32 +712,34 @@ static void test_bitterli(void)
     }
     pf_scene_destroy(&s);
     /* The dining room has the sun and sky alone: the sun is read (a distant
-     * light), the sky is not rendered yet. */
+     * light), the sky an image-based infinite light (a 512 x 512 map). */
     s = pf_scene_create();
     CHECK(pf_pbrt_load(s, dining, &(pf_load_opts_t){ .report = &rep }, &err) == PF_OK, "%s", err.msg);
     size_t ntris = 0;
     for (size_t i = 0; i < s->nmeshes; i++)
         ntris += s->meshes[i].ntris;
-    CHECK(s->nmeshes == 53 && ntris == 269538 && s->nlights == 1, "%zu meshes, %zu triangles", s->nmeshes, ntris);
-    if (s->nlights == 1) {
+    CHECK(s->nmeshes == 53 && ntris == 269538 && s->nlights == 2 && s->nenvmaps == 1 &&
+              s->envmaps[0].width == 512 && s->lights[1].map == 1,
+          "%zu meshes, %zu triangles, %zu lights", s->nmeshes, ntris, s->nlights);
+    if (s->nlights == 2) {
         const pf_light_t *l = &s->lights[0];
         pf_vec3 to_sun = pf_norm(pf_v3(0.88698f, 0.288862f, 0.360313f));
         CHECK(l->type == PF_LIGHT_DISTANT && pf_dot(l->dir, to_sun) < -0.9999f && s_vnear(l->intensity, 10, 10, 10),
               "dir %g %g %g", l->dir.x, l->dir.y, l->dir.z);
     }
-    const char *kinds[] = { "Sampler (ignored)", "light type infinite", "texture" };
+    const char *kinds[] = { "Sampler (ignored)", "texture" };
     for (size_t i = 0; i < sizeof kinds / sizeof *kinds; i++)
         CHECK(s_warned(&rep, kinds[i]) >= 1, "%s", kinds[i]);
     /* the floor's and the picture's imagemaps are rendered; the teacup's
      * (under a coateddiffuse) is not */
-    CHECK(rep.nwarnings == 3 && s_warned(&rep, "texture") == 1 && s_warned(&rep, "coateddiffuse") == 0 &&
+    CHECK(rep.nwarnings == 2 && s_warned(&rep, "texture") == 1 && s_warned(&rep, "coateddiffuse") == 0 &&
               s_warned(&rep, "rough conductor") == 0,
           "%zu kinds",
           rep.nwarnings);
     CHECK(s->ntexs == 2 && s_mat(s, "FloorTiles") && s_mat(s, "FloorTiles")->kd_tex > 0, "%zu textures", s->ntexs);
     pf_scene_destroy(&s);
     s = pf_scene_load(dining, &err);
-    CHECK(s && s->nlights == 1, "the sun lights it: %s", s ? "" : err.msg);
+    CHECK(s && s->nlights == 2, "the sun and the sky light it: %s", s ? "" : err.msg);
     pf_scene_destroy(&s);
 }
 

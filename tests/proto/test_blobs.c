@@ -339,9 +339,10 @@ static s_offsets_t s_walk(const uint8_t *d)
     at += 4 + 20 * d[at];
     o.nlights = at;
     o.light0_type = at + 4;
-    at += 4 + 45 * d[at];
+    at += 4 + 49 * d[at];
     o.ntexs = at; /* the tiny scene has none */
     at += 4;
+    at += 4; /* no environment maps */
     o.end = at;
     return o;
 }
@@ -394,11 +395,12 @@ static void test_scene_blob(void)
     const s_spatch_t patches[] = {
         { 0, 1, 'X', 0, "bad magic", "magic" },
         { 4, 2, 9, 0, "format version 9", "version" },
-        { 4, 2, 2, 0, "format version 2, this build reads 7", "version 2 (before the lens)" },
-        { 4, 2, 3, 0, "format version 3, this build reads 7", "version 3 (before the conductor)" },
-        { 4, 2, 4, 0, "format version 4, this build reads 7", "version 4 (before the thin dielectric)" },
-        { 4, 2, 5, 0, "format version 5, this build reads 7", "version 5 (before the distant light)" },
-        { 4, 2, 6, 0, "format version 6, this build reads 7", "version 6 (before the coat and the textures)" },
+        { 4, 2, 2, 0, "format version 2, this build reads 8", "version 2 (before the lens)" },
+        { 4, 2, 3, 0, "format version 3, this build reads 8", "version 3 (before the conductor)" },
+        { 4, 2, 4, 0, "format version 4, this build reads 8", "version 4 (before the thin dielectric)" },
+        { 4, 2, 5, 0, "format version 5, this build reads 8", "version 5 (before the distant light)" },
+        { 4, 2, 6, 0, "format version 6, this build reads 8", "version 6 (before the coat and the textures)" },
+        { 4, 2, 7, 0, "format version 7, this build reads 8", "version 7 (before the environment maps)" },
         { o.reserved, 2, 1, 0, "reserved", "reserved field" },
         { o.has_camera, 1, 2, 0, "has_camera", "has_camera 2" },
         { o.has_camera + 1, -4, 0, NAN, "camera pos is not a finite number", "camera NaN" },
@@ -439,6 +441,8 @@ static void test_scene_blob(void)
         { o.sphere0_mat, 4, 9, 0, "sphere 0 material index 9", "sphere material" },
         { o.nlights, 4, 0x10000000u, 0, "lights need at least", "light count" },
         { o.light0_type, 1, 5, 0, "light 0 type 5 is not a light type (0..3)", "light type" },
+        { o.light0_type + 45, 4, 1, 0, "environment map 1 does not exist (0 maps)", "light map index" },
+        { o.end - 4, 4, 0x10000000u, 0, "envmaps need at least", "envmap count" },
     };
     for (size_t i = 0; i < sizeof patches / sizeof patches[0]; i++)
         s_scene_patch(&b, &patches[i]);

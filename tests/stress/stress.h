@@ -32,6 +32,7 @@ void stress_test_degenerate(void);
 void stress_test_kdtree(void);
 void stress_test_distant(void); /* stress_lights.c */
 void stress_test_sky(void);     /* stress_lights.c */
+void stress_test_envmap(void);  /* stress_envmap.c */
 
 /* Scene building: materials, watertight boxes, spheres, point lights, the
  * camera, and settings for a small, fast render. */

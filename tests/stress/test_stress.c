@@ -37,6 +37,9 @@
  *   sky         a constant sky's furnace: a diffuse sphere of albedo a
  *               reads a L with all terms, the background L, the stored flux
  *               4 pi^2 r^2 L; a lossless glass sphere reads L everywhere.
+ *   envmap      a constant-valued image sky renders as the constant sky:
+ *               the furnace for both mappings, and the direct and indirect
+ *               terms of a sphere over a ground.
  *
  * Every render is checked for NaN, Inf and negative channels, both by the
  * job's own count and by a scan here. Seeds are fixed, so each measured value
@@ -44,7 +47,7 @@
  * docs/stress.md) and below what the regressions they guard against give.
  * With PF_STRESS_DUMP=dir every checked image is also written to dir.
  *
- * Usage: test_stress [furnace|plane|invariance|geometry|degenerate|kdtree|distant|sky|all],
+ * Usage: test_stress [furnace|plane|invariance|geometry|degenerate|kdtree|distant|sky|envmap|all],
  * from the repository root (scene and data paths are relative to it).
  *
  * This file holds main and the check counts; stress.h says where the
@@ -81,6 +84,8 @@ int main(int argc, char **argv)
         stress_test_distant();
     if (all || !strcmp(what, "sky"))
         stress_test_sky();
+    if (all || !strcmp(what, "envmap"))
+        stress_test_envmap();
     printf("stress %s: %.1f s\n", what, pf_now() - t0);
     return pf_test_finish();
 }
