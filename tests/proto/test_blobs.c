@@ -308,10 +308,10 @@ static s_offsets_t s_walk(const uint8_t *d)
     for (uint32_t i = 0; i < nm; i++) {
         at += 2 + s_str_len_at(d + at);
         if (i == 1)
-            o.mat1_type = at, o.mat1_kd_tex = at + 1 + 56 + 28;
+            o.mat1_type = at, o.mat1_kd_tex = at + 1 + 56 + 28 + 4; /* after eta, k, alpha, thickness */
         if (i == 4)
             o.mat4_eta = at + 1 + 56;
-        at += 1 + 56 + 32;
+        at += 1 + 56 + 36;
     }
     o.nmeshes = at;
     uint32_t nmesh = d[at];
