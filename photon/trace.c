@@ -37,8 +37,6 @@
 #include "material/ggx.h"
 #include "photon/irradiance.h"
 
-#define PF_PHOTON_BLOCK 4096
-
 static volatile int *s_cancel;
 
 void pf_photon_set_cancel(volatile int *flag) { s_cancel = flag; }
@@ -237,22 +235,28 @@ static int s_trace_map(const s_ctx *c, uint64_t seed, uint64_t emitted, int caus
     return PF_OK;
 }
 
-int pf_photon_pass(const pf_scene_t *scene, const pf_accel_t *accel, const pf_lights_t *lights,
-                   const pf_settings_t *settings, pf_photon_maps_t *maps, pf_photon_stats_t *stats)
+/* The caustic photons a scene gets (none without specular surfaces, where
+ * the caustic map is skipped) and the specular targets they aim at. */
+static int s_setup(const pf_scene_t *scene, const pf_settings_t *settings, pf_target_t **targets,
+                   uint64_t *caustic_photons, int quiet)
 {
-    memset(maps, 0, sizeof *maps);
-    memset(stats, 0, sizeof *stats);
-    int threads = settings->threads > 0 ? settings->threads : omp_get_num_procs();
-    s_ctx c = { scene, accel, lights, settings->photon_max_depth, NULL, 0 };
-    pf_target_t *targets = NULL;
-    int nt = pf_specular_targets(scene, &targets);
+    int nt = pf_specular_targets(scene, targets);
     if (nt < 0)
         return nt;
-    c.targets = targets;
-    c.ntargets = (size_t)nt;
-    uint64_t caustic_photons = nt > 0 ? settings->caustic_photons : 0;
-    if (nt == 0 && settings->caustic_photons)
+    *caustic_photons = nt > 0 ? settings->caustic_photons : 0;
+    if (nt == 0 && settings->caustic_photons && !quiet)
         pf_info("caustic map skipped: no mirror, glass or conductor surfaces");
+    return nt;
+}
+
+int pf_photon_build(const pf_scene_t *scene, const pf_accel_t *accel, const pf_settings_t *settings,
+                    uint64_t caustic_emitted, pf_photon_t **gp_p, size_t gn, pf_photon_t **cp_p, size_t cn,
+                    pf_photon_maps_t *maps, pf_photon_stats_t *stats)
+{
+    int threads = settings->threads > 0 ? settings->threads : omp_get_num_procs();
+    pf_photon_t *gp = *gp_p, *cp = *cp_p;
+    *gp_p = *cp_p = NULL;
+    memset(maps, 0, sizeof *maps);
     pf_vec3 lo, hi;
     pf_scene_bounds(scene, &lo, &hi);
     float diag = pf_len(pf_sub(hi, lo));
@@ -264,31 +268,13 @@ int pf_photon_pass(const pf_scene_t *scene, const pf_accel_t *accel, const pf_li
     maps->caustic_r2 = cr * cr;
     maps->irradiance_r2 = gr * gr;
     maps->global_emitted = settings->photons;
-    maps->caustic_emitted = caustic_photons;
-
-    double t0 = pf_now();
-    pf_photon_t *gp = NULL, *cp = NULL;
-    size_t gn = 0, cn = 0;
-    int rc = PF_OK;
-    uint64_t unused = 0;
-    if (settings->photons)
-        rc = s_trace_map(&c, settings->seed, settings->photons, 0, threads, &gp, &gn, &stats->rejected,
-                         &stats->indirect_stored);
-    if (rc == PF_OK && caustic_photons)
-        rc = s_trace_map(&c, settings->seed, caustic_photons, 1, threads, &cp, &cn, &stats->rejected, &unused);
-    free(targets);
-    double t1 = pf_now();
-    stats->trace_s = t1 - t0;
-    if (rc != PF_OK) {
-        free(gp);
-        free(cp);
-        return rc;
-    }
+    maps->caustic_emitted = caustic_emitted;
     if (s_cancelled()) {
         free(gp);
         free(cp);
         return PF_EINTERRUPTED;
     }
+    double t1 = pf_now();
     stats->global_stored = gn;
     stats->caustic_stored = cn;
     maps->global = pf_kdtree_build(&gp, gn);
@@ -303,6 +289,7 @@ int pf_photon_pass(const pf_scene_t *scene, const pf_accel_t *accel, const pf_li
      * diffuse point sees a lit one, the final gather would find nothing, and
      * the irradiance it reads need not be computed (pf_photon_skip_gather). */
     stats->gather_skipped = settings->photons > 0 && gn > 0 && stats->indirect_stored == 0;
+    int rc;
     if (s_cancelled()) {
         rc = PF_EINTERRUPTED;
     } else if (stats->gather_skipped) {
@@ -321,6 +308,195 @@ int pf_photon_pass(const pf_scene_t *scene, const pf_accel_t *accel, const pf_li
     }
     stats->irradiance_points = pf_kdtree_size(maps->irradiance);
     return PF_OK;
+}
+
+int pf_photon_pass(const pf_scene_t *scene, const pf_accel_t *accel, const pf_lights_t *lights,
+                   const pf_settings_t *settings, pf_photon_maps_t *maps, pf_photon_stats_t *stats)
+{
+    memset(maps, 0, sizeof *maps);
+    memset(stats, 0, sizeof *stats);
+    int threads = settings->threads > 0 ? settings->threads : omp_get_num_procs();
+    s_ctx c = { scene, accel, lights, settings->photon_max_depth, NULL, 0 };
+    pf_target_t *targets = NULL;
+    uint64_t caustic_photons = 0;
+    int nt = s_setup(scene, settings, &targets, &caustic_photons, 0);
+    if (nt < 0)
+        return nt;
+    c.targets = targets;
+    c.ntargets = (size_t)nt;
+
+    double t0 = pf_now();
+    pf_photon_t *gp = NULL, *cp = NULL;
+    size_t gn = 0, cn = 0;
+    int rc = PF_OK;
+    uint64_t unused = 0;
+    if (settings->photons)
+        rc = s_trace_map(&c, settings->seed, settings->photons, 0, threads, &gp, &gn, &stats->rejected,
+                         &stats->indirect_stored);
+    if (rc == PF_OK && caustic_photons)
+        rc = s_trace_map(&c, settings->seed, caustic_photons, 1, threads, &cp, &cn, &stats->rejected, &unused);
+    free(targets);
+    stats->trace_s = pf_now() - t0;
+    if (rc != PF_OK) {
+        free(gp);
+        free(cp);
+        return rc;
+    }
+    return pf_photon_build(scene, accel, settings, caustic_photons, &gp, gn, &cp, cn, maps, stats);
+}
+
+/* ---- batches: the photon pass spread over processes ---- */
+
+struct pf_photon_tracer {
+    s_ctx c;
+    pf_target_t *targets;
+    uint64_t seed;
+    pf_photon_plan_t plan;
+};
+
+static uint32_t s_batches(uint64_t emitted)
+{
+    uint64_t blocks = (emitted + PF_PHOTON_BLOCK - 1) / PF_PHOTON_BLOCK;
+    return (uint32_t)((blocks + PF_PHOTON_BATCH_BLOCKS - 1) / PF_PHOTON_BATCH_BLOCKS);
+}
+
+int pf_photon_tracer_new(const pf_scene_t *scene, const pf_accel_t *accel, const pf_lights_t *lights,
+                         const pf_settings_t *settings, int quiet, pf_photon_tracer_t **out)
+{
+    *out = NULL;
+    pf_photon_tracer_t *t = calloc(1, sizeof *t);
+    if (!t)
+        return PF_ENOMEM;
+    uint64_t caustic = 0;
+    int nt = s_setup(scene, settings, &t->targets, &caustic, quiet);
+    if (nt < 0) {
+        free(t);
+        return nt;
+    }
+    t->c = (s_ctx){ scene, accel, lights, settings->photon_max_depth, t->targets, (size_t)nt };
+    t->seed = settings->seed;
+    t->plan.global_emitted = settings->photons;
+    t->plan.caustic_emitted = caustic;
+    uint64_t gb = s_batches(settings->photons), cb = s_batches(caustic);
+    if (gb + cb > PF_PHOTON_MAX_BATCHES) {
+        free(t->targets);
+        free(t);
+        return PF_EINVAL;
+    }
+    t->plan.global_batches = (uint32_t)gb;
+    t->plan.caustic_batches = (uint32_t)cb;
+    *out = t;
+    return PF_OK;
+}
+
+void pf_photon_tracer_free(pf_photon_tracer_t **t_p)
+{
+    if (!*t_p)
+        return;
+    free((*t_p)->targets);
+    free(*t_p);
+    *t_p = NULL;
+}
+
+const pf_photon_plan_t *pf_photon_tracer_plan(const pf_photon_tracer_t *t) { return &t->plan; }
+
+int pf_photon_trace_batch(const pf_photon_tracer_t *t, uint32_t batch, int threads, volatile int *abort,
+                          pf_photon_batch_t *out)
+{
+    memset(out, 0, sizeof *out);
+    const pf_photon_plan_t *pl = &t->plan;
+    if (batch >= pl->global_batches + pl->caustic_batches)
+        return PF_EINVAL;
+    int caustic = batch >= pl->global_batches;
+    uint64_t emitted = caustic ? pl->caustic_emitted : pl->global_emitted;
+    uint64_t b0 = (uint64_t)(caustic ? batch - pl->global_batches : batch) * PF_PHOTON_BATCH_BLOCKS;
+    uint64_t nblocks = (emitted + PF_PHOTON_BLOCK - 1) / PF_PHOTON_BLOCK;
+    uint64_t b1 = b0 + PF_PHOTON_BATCH_BLOCKS < nblocks ? b0 + PF_PHOTON_BATCH_BLOCKS : nblocks;
+    s_buf bufs[PF_PHOTON_BATCH_BLOCKS];
+    memset(bufs, 0, sizeof bufs);
+    int failed = 0;
+    uint64_t bad = 0;
+    int n = (int)(b1 - b0);
+#pragma omp parallel num_threads(threads) reduction(+ : bad)
+    {
+        pf_accel_thread_init();
+#pragma omp for schedule(dynamic, 1)
+        for (int k = 0; k < n; k++) {
+            if (s_cancelled() || (abort && *abort)) {
+#pragma omp atomic write
+                failed = PF_EINTERRUPTED;
+                continue;
+            }
+            uint64_t lo = (b0 + (uint64_t)k) * PF_PHOTON_BLOCK;
+            uint64_t hi = lo + PF_PHOTON_BLOCK < emitted ? lo + PF_PHOTON_BLOCK : emitted;
+            for (uint64_t i = lo; i < hi; i++) {
+                int r = s_trace(&t->c, t->seed, i, emitted, caustic, &bufs[k]);
+                if (r < 0) {
+#pragma omp atomic write
+                    failed = PF_ENOMEM;
+                    break;
+                }
+                bad += (uint64_t)r;
+            }
+        }
+    }
+    size_t total = 0;
+    for (int k = 0; k < n; k++) {
+        total += bufs[k].n;
+        out->indirect += bufs[k].indirect;
+    }
+    pf_photon_t *all = failed ? NULL : malloc((total ? total : 1) * sizeof *all);
+    if (all) {
+        size_t at = 0;
+        for (int k = 0; k < n; k++) {
+            if (bufs[k].n)
+                memcpy(all + at, bufs[k].p, bufs[k].n * sizeof *all);
+            at += bufs[k].n;
+        }
+    }
+    for (int k = 0; k < n; k++)
+        free(bufs[k].p);
+    if (!all) {
+        out->indirect = 0;
+        return failed ? failed : PF_ENOMEM;
+    }
+    out->p = all;
+    out->n = total;
+    out->rejected = bad;
+    if (caustic)
+        out->indirect = 0; /* only the global map's count matters (the gather skip) */
+    return PF_OK;
+}
+
+int pf_photon_merge(const pf_scene_t *scene, const pf_accel_t *accel, const pf_settings_t *settings,
+                    const pf_photon_plan_t *plan, pf_photon_batch_t *batches, pf_photon_maps_t *maps,
+                    pf_photon_stats_t *stats)
+{
+    uint32_t nb = plan->global_batches + plan->caustic_batches;
+    size_t gn = 0, cn = 0;
+    for (uint32_t b = 0; b < nb; b++) {
+        *(b < plan->global_batches ? &gn : &cn) += batches[b].n;
+        stats->rejected += batches[b].rejected;
+        if (b < plan->global_batches)
+            stats->indirect_stored += batches[b].indirect;
+    }
+    pf_photon_t *gp = malloc((gn ? gn : 1) * sizeof *gp), *cp = malloc((cn ? cn : 1) * sizeof *cp);
+    if (!gp || !cp) {
+        free(gp);
+        free(cp);
+        return PF_ENOMEM;
+    }
+    size_t gi = 0, ci = 0;
+    for (uint32_t b = 0; b < nb; b++) {
+        int global = b < plan->global_batches;
+        if (batches[b].n)
+            memcpy(global ? gp + gi : cp + ci, batches[b].p, batches[b].n * sizeof *gp);
+        *(global ? &gi : &ci) += batches[b].n;
+        free(batches[b].p);
+        batches[b].p = NULL;
+        batches[b].n = 0;
+    }
+    return pf_photon_build(scene, accel, settings, plan->caustic_emitted, &gp, gn, &cp, cn, maps, stats);
 }
 
 /* More than PF_IRRADIANCE_MAX_POINTS points add time and memory but no
