@@ -20,7 +20,7 @@
  * joins their blocks in block order, so the maps do not depend on who traced
  * which batch. At most PF_PHOTON_MAX_BATCHES per pass (a table the coordinator
  * holds: 2^20 batches are 2^35 photons). */
-#define PF_PHOTON_BATCH_BLOCKS 8
+#define PF_PHOTON_BATCH_BLOCKS 16
 #define PF_PHOTON_MAX_BATCHES (1u << 20)
 
 typedef struct pf_photon_stats {
