@@ -209,8 +209,8 @@ void pf_fm_on_photons(pf_fm_t *f, int wi, const pf_msg_t *m);
 /* 1 when worker wi (welcomed, no JOB yet) may fetch blob `hash`: the scene
  * blob of the photon pass it was asked to trace. */
 int pf_fm_photons_blob_ok(const pf_fm_t *f, int wi, uint64_t hash);
-/* Worker wi's photon batches go back to the free list. */
-void pf_fm_photons_release(pf_fm_t *f, int wi);
+/* Worker wi's photon batches go back to the free list; how many. */
+int pf_fm_photons_release(pf_fm_t *f, int wi);
 /* The photon thread is joined: the table's figures into the summary, the
  * table freed, a log line. */
 void pf_fm_photons_end(pf_fm_t *f);

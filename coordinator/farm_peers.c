@@ -76,10 +76,11 @@ static void s_refuse(pf_fm_t *f, const uint8_t *id, size_t idlen, const char *wh
 /* Returns a worker's leased tiles to the front of the queue. */
 void pf_fm_release_worker(pf_fm_t *f, int wi, const char *why)
 {
-    pf_fm_photons_release(f, wi);
+    int nb = pf_fm_photons_release(f, wi);
     int n = pf_leases_release(&f->L, &f->reg, wi);
-    if ((n || why) && pf_fm_may_log(&f->peer_log, 10.0))
-        pf_warn("worker %s %s: %d tile%s re-issued", f->reg.w[wi].name, why ? why : "released", n, n == 1 ? "" : "s");
+    if ((n || nb || why) && pf_fm_may_log(&f->peer_log, 10.0))
+        pf_warn("worker %s %s: %d tile%s re-issued%s", f->reg.w[wi].name, why ? why : "released", n, n == 1 ? "" : "s",
+                nb ? " (and its photon batches)" : "");
 }
 
 void pf_fm_declare_dead(pf_fm_t *f, int wi, const char *why)

@@ -142,11 +142,10 @@ int pf_fm_photons_blob_ok(const pf_fm_t *f, int wi, uint64_t hash)
     return f->ph_published && !f->job_ready && f->reg.w[wi].ph_asked && hash == f->ph.early_hash;
 }
 
-void pf_fm_photons_release(pf_fm_t *f, int wi)
+int pf_fm_photons_release(pf_fm_t *f, int wi)
 {
     pf_phq_t *q = s_phq(f);
-    if (q)
-        pf_phq_release(q, f->reg.w[wi].uid);
+    return q ? (int)pf_phq_release(q, f->reg.w[wi].uid) : 0;
 }
 
 void pf_fm_photons_end(pf_fm_t *f)

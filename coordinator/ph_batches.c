@@ -193,13 +193,17 @@ static void s_unlease(s_batch *b)
         b->state = S_FREE;
 }
 
-void pf_phq_release(pf_phq_t *q, uint32_t uid)
+uint32_t pf_phq_release(pf_phq_t *q, uint32_t uid)
 {
     pthread_mutex_lock(&q->mu);
+    uint32_t n = 0;
     for (uint32_t i = 0; i < q->nb; i++)
-        if (q->b[i].state == S_LEASED && q->b[i].uid == uid)
+        if (q->b[i].state == S_LEASED && q->b[i].uid == uid) {
             s_unlease(&q->b[i]);
+            n++;
+        }
     pthread_mutex_unlock(&q->mu);
+    return n;
 }
 
 uint32_t pf_phq_expire(pf_phq_t *q, double now, double timeout_s)

@@ -41,8 +41,9 @@ int pf_phq_run(pf_phq_t *q, int threads);
 uint32_t pf_phq_lease(pf_phq_t *q, uint32_t uid, uint32_t count, double now, uint32_t *first);
 /* Batches leased to uid and not yet done. */
 uint32_t pf_phq_held(pf_phq_t *q, uint32_t uid);
-/* Returns uid's leased batches to the free list; its partial results go. */
-void pf_phq_release(pf_phq_t *q, uint32_t uid);
+/* Returns uid's leased batches to the free list (how many); its partial
+ * results go. */
+uint32_t pf_phq_release(pf_phq_t *q, uint32_t uid);
 /* Leases older than timeout_s return to the free list; how many did. */
 uint32_t pf_phq_expire(pf_phq_t *q, double now, double timeout_s);
 
