@@ -33,7 +33,7 @@ typedef struct s_batch {
     pf_photon_batch_t res;  /* S_DONE: the result */
     /* a worker's result coming in parts */
     pf_photon_t *recv;
-    uint64_t total, got, rejected, indirect;
+    uint64_t total, got, cap, rejected, indirect;
     uint32_t recv_uid;
 } s_batch;
 
@@ -83,7 +83,7 @@ static void s_drop_recv(s_batch *b)
 {
     free(b->recv);
     b->recv = NULL;
-    b->total = b->got = b->rejected = b->indirect = 0;
+    b->total = b->got = b->cap = b->rejected = b->indirect = 0;
     b->recv_uid = 0;
 }
 
@@ -268,11 +268,26 @@ int pf_phq_on_photons(pf_phq_t *q, uint32_t uid, const pf_msg_photons_t *p, char
     } else {
         if (p->first == 0) {
             s_drop_recv(b);
-            b->recv = malloc((p->total ? p->total : 1) * sizeof *b->recv);
             b->total = p->total;
             b->rejected = p->rejected;
             b->indirect = p->indirect;
             b->recv_uid = uid;
+        }
+        /* The buffer grows as parts arrive (doubling, never past the total
+         * announced), so a total that no photons follow costs nothing. */
+        if (b->got + p->n > b->cap || !b->recv) {
+            uint64_t cap = b->cap ? b->cap : 1;
+            while (cap < b->got + p->n)
+                cap *= 2;
+            cap = cap < b->total ? cap : (b->total ? b->total : 1);
+            pf_photon_t *grown = cap <= SIZE_MAX / sizeof *grown ? realloc(b->recv, (size_t)cap * sizeof *grown) : NULL;
+            if (grown) {
+                b->recv = grown;
+                b->cap = cap;
+            } else {
+                free(b->recv);
+                b->recv = NULL;
+            }
         }
         if (!b->recv) {
             snprintf(why, why_len, "PHOTONS: out of memory for %" PRIu64 " photons", p->total);
