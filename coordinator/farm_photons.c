@@ -117,6 +117,10 @@ void pf_fm_on_photons(pf_fm_t *f, int wi, const pf_msg_t *m)
 {
     pf_phq_t *q = s_phq(f);
     pf_worker_t *w = &f->reg.w[wi];
+    if (!w->ph_asked) {
+        pf_fm_strike(f, wi, "PHOTONS without a PHOTON_REQ");
+        return;
+    }
     if (!q || m->job != f->ph.job || f->job_ready) {
         f->sum->ph_stale++;
         pf_debug("dropped PHOTONS from %s: no photon pass of job %llu under way", w->name, (unsigned long long)m->job);
