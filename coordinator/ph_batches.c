@@ -24,6 +24,8 @@
 
 enum { S_FREE = 0, S_LEASED, S_DONE };
 
+#define S_LOCAL_RUN 4 /* free batches the photon thread takes at once */
+
 typedef struct s_batch {
     int state;
     int local;              /* the photon thread is tracing it */
@@ -102,15 +104,20 @@ void pf_phq_free(pf_phq_t **q_p)
     *q_p = NULL;
 }
 
-/* The batch the photon thread traces next: the first free one, else the
- * oldest leased one it is not tracing; UINT32_MAX: none left. */
-static uint32_t s_pick(pf_phq_t *q)
+/* The batches the photon thread traces next: up to S_LOCAL_RUN consecutive
+ * free ones (the threads share their blocks), else the oldest leased one it
+ * is not tracing (*n = 1); UINT32_MAX: none left. */
+static uint32_t s_pick(pf_phq_t *q, uint32_t *n)
 {
     uint32_t oldest = UINT32_MAX;
+    *n = 1;
     for (uint32_t i = 0; i < q->nb; i++) {
         s_batch *b = &q->b[i];
-        if (b->state == S_FREE)
+        if (b->state == S_FREE) {
+            while (*n < S_LOCAL_RUN && i + *n < q->nb && q->b[i + *n].state == S_FREE)
+                (*n)++;
             return i;
+        }
         if (b->state == S_LEASED && !b->local && (oldest == UINT32_MAX || b->leased_at < q->b[oldest].leased_at))
             oldest = i;
     }
@@ -119,42 +126,49 @@ static uint32_t s_pick(pf_phq_t *q)
 
 int pf_phq_run(pf_phq_t *q, int threads)
 {
+    pf_photon_batch_t res[S_LOCAL_RUN];
     for (;;) {
+        uint32_t n;
         pthread_mutex_lock(&q->mu);
-        uint32_t i = s_pick(q);
+        uint32_t i = s_pick(q, &n);
         if (i == UINT32_MAX) {
             pthread_mutex_unlock(&q->mu);
             return PF_OK;
         }
         s_batch *b = &q->b[i];
         if (b->state == S_LEASED)
-            q->st.stolen++;
-        else
-            b->state = S_LEASED; /* uid 0: the coordinator's */
-        b->local = 1;
-        b->abort = 0;
-        pthread_mutex_unlock(&q->mu);
-
-        pf_photon_batch_t res;
-        int rc = pf_photon_trace_batch(q->tracer, i, threads, &b->abort, &res);
-
-        pthread_mutex_lock(&q->mu);
-        b->local = 0;
-        if (rc == PF_OK && b->state != S_DONE) {
-            b->state = S_DONE;
-            b->res = res;
-            b->uid = 0;
-            s_drop_recv(b);
-            q->ndone++;
-            q->st.local++;
-        } else {
-            free(res.p);
+            q->st.stolen++; /* a worker's: whoever finishes first, the other's result is dropped */
+        for (uint32_t k = 0; k < n; k++) {
+            if (b[k].state == S_FREE)
+                b[k].state = S_LEASED; /* uid 0: the coordinator's */
+            b[k].local = 1;
+            b[k].abort = 0;
         }
         pthread_mutex_unlock(&q->mu);
-        if (rc != PF_OK && rc != PF_EINTERRUPTED)
-            return rc;
-        if (rc == PF_EINTERRUPTED && !(b->abort))
-            return rc; /* the process is stopping, not a worker's win */
+
+        /* Only a stolen batch (n == 1) can be won by a worker meanwhile. */
+        int rc = pf_photon_trace_batches(q->tracer, i, n, threads, &b->abort, res);
+
+        pthread_mutex_lock(&q->mu);
+        int won = b->abort;
+        for (uint32_t k = 0; k < n; k++) {
+            b[k].local = 0;
+            if (rc == PF_OK && b[k].state != S_DONE) {
+                b[k].state = S_DONE;
+                b[k].res = res[k];
+                b[k].uid = 0;
+                s_drop_recv(&b[k]);
+                q->ndone++;
+                q->st.local++;
+            } else {
+                free(res[k].p);
+                if (rc != PF_OK && b[k].state == S_LEASED && b[k].uid == 0)
+                    b[k].state = S_FREE;
+            }
+        }
+        pthread_mutex_unlock(&q->mu);
+        if (rc != PF_OK && !(rc == PF_EINTERRUPTED && won))
+            return rc; /* out of memory, or the process is stopping */
     }
 }
 

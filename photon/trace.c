@@ -47,6 +47,7 @@ typedef struct s_buf {
     pf_photon_t *p;
     size_t n, cap;
     uint64_t indirect; /* photons stored after a non-specular bounce */
+    uint64_t rejected; /* photons dropped for bad power (batches only) */
 } s_buf;
 
 /* The first growth makes room for 1024 photons rather than pf_reserve's 16,
@@ -400,52 +401,17 @@ void pf_photon_tracer_free(pf_photon_tracer_t **t_p)
 
 const pf_photon_plan_t *pf_photon_tracer_plan(const pf_photon_tracer_t *t) { return &t->plan; }
 
-int pf_photon_trace_batch(const pf_photon_tracer_t *t, uint32_t batch, int threads, volatile int *abort,
-                          pf_photon_batch_t *out)
+/* Joins a batch's block buffers (freed) into out, in block order. */
+static int s_join(s_buf *bufs, int n, int caustic, pf_photon_batch_t *out)
 {
     memset(out, 0, sizeof *out);
-    const pf_photon_plan_t *pl = &t->plan;
-    if (batch >= pl->global_batches + pl->caustic_batches)
-        return PF_EINVAL;
-    int caustic = batch >= pl->global_batches;
-    uint64_t emitted = caustic ? pl->caustic_emitted : pl->global_emitted;
-    uint64_t b0 = (uint64_t)(caustic ? batch - pl->global_batches : batch) * PF_PHOTON_BATCH_BLOCKS;
-    uint64_t nblocks = (emitted + PF_PHOTON_BLOCK - 1) / PF_PHOTON_BLOCK;
-    uint64_t b1 = b0 + PF_PHOTON_BATCH_BLOCKS < nblocks ? b0 + PF_PHOTON_BATCH_BLOCKS : nblocks;
-    s_buf bufs[PF_PHOTON_BATCH_BLOCKS];
-    memset(bufs, 0, sizeof bufs);
-    int failed = 0;
-    uint64_t bad = 0;
-    int n = (int)(b1 - b0);
-#pragma omp parallel num_threads(threads) reduction(+ : bad)
-    {
-        pf_accel_thread_init();
-#pragma omp for schedule(dynamic, 1)
-        for (int k = 0; k < n; k++) {
-            if (s_cancelled() || (abort && *abort)) {
-#pragma omp atomic write
-                failed = PF_EINTERRUPTED;
-                continue;
-            }
-            uint64_t lo = (b0 + (uint64_t)k) * PF_PHOTON_BLOCK;
-            uint64_t hi = lo + PF_PHOTON_BLOCK < emitted ? lo + PF_PHOTON_BLOCK : emitted;
-            for (uint64_t i = lo; i < hi; i++) {
-                int r = s_trace(&t->c, t->seed, i, emitted, caustic, &bufs[k]);
-                if (r < 0) {
-#pragma omp atomic write
-                    failed = PF_ENOMEM;
-                    break;
-                }
-                bad += (uint64_t)r;
-            }
-        }
-    }
     size_t total = 0;
     for (int k = 0; k < n; k++) {
         total += bufs[k].n;
         out->indirect += bufs[k].indirect;
+        out->rejected += bufs[k].rejected;
     }
-    pf_photon_t *all = failed ? NULL : malloc((total ? total : 1) * sizeof *all);
+    pf_photon_t *all = malloc((total ? total : 1) * sizeof *all);
     if (all) {
         size_t at = 0;
         for (int k = 0; k < n; k++) {
@@ -454,18 +420,87 @@ int pf_photon_trace_batch(const pf_photon_tracer_t *t, uint32_t batch, int threa
             at += bufs[k].n;
         }
     }
-    for (int k = 0; k < n; k++)
+    for (int k = 0; k < n; k++) {
         free(bufs[k].p);
+        bufs[k].p = NULL;
+    }
     if (!all) {
-        out->indirect = 0;
-        return failed ? failed : PF_ENOMEM;
+        memset(out, 0, sizeof *out);
+        return PF_ENOMEM;
     }
     out->p = all;
     out->n = total;
-    out->rejected = bad;
     if (caustic)
         out->indirect = 0; /* only the global map's count matters (the gather skip) */
     return PF_OK;
+}
+
+int pf_photon_trace_batches(const pf_photon_tracer_t *t, uint32_t first, uint32_t count, int threads,
+                            volatile int *abort, pf_photon_batch_t *out)
+{
+    memset(out, 0, count * sizeof *out);
+    const pf_photon_plan_t *pl = &t->plan;
+    uint32_t nb = pl->global_batches + pl->caustic_batches;
+    if (count == 0 || count > PF_PHOTON_MAX_BATCHES || first >= nb || count > nb - first)
+        return PF_EINVAL;
+    /* One work item a block, over every block of the batches, so that the
+     * threads stay busy across batch boundaries. */
+    size_t nitems = (size_t)count * PF_PHOTON_BATCH_BLOCKS;
+    s_buf *bufs = calloc(nitems, sizeof *bufs);
+    if (!bufs)
+        return PF_ENOMEM;
+    int failed = 0;
+#pragma omp parallel num_threads(threads)
+    {
+        pf_accel_thread_init();
+#pragma omp for schedule(dynamic, 1)
+        for (size_t w = 0; w < nitems; w++) {
+            uint32_t batch = first + (uint32_t)(w / PF_PHOTON_BATCH_BLOCKS);
+            int caustic = batch >= pl->global_batches;
+            uint64_t emitted = caustic ? pl->caustic_emitted : pl->global_emitted;
+            uint64_t block = (uint64_t)(caustic ? batch - pl->global_batches : batch) * PF_PHOTON_BATCH_BLOCKS +
+                             w % PF_PHOTON_BATCH_BLOCKS;
+            uint64_t lo = block * PF_PHOTON_BLOCK;
+            if (lo >= emitted)
+                continue; /* the map's last batch is short */
+            if (s_cancelled() || (abort && *abort)) {
+#pragma omp atomic write
+                failed = PF_EINTERRUPTED;
+                continue;
+            }
+            uint64_t hi = lo + PF_PHOTON_BLOCK < emitted ? lo + PF_PHOTON_BLOCK : emitted;
+            for (uint64_t i = lo; i < hi; i++) {
+                int r = s_trace(&t->c, t->seed, i, emitted, caustic, &bufs[w]);
+                if (r < 0) {
+#pragma omp atomic write
+                    failed = PF_ENOMEM;
+                    break;
+                }
+                bufs[w].rejected += (uint64_t)r;
+            }
+        }
+    }
+    int rc = failed;
+    for (uint32_t k = 0; k < count; k++) {
+        s_buf *b = bufs + (size_t)k * PF_PHOTON_BATCH_BLOCKS;
+        if (rc == PF_OK)
+            rc = s_join(b, PF_PHOTON_BATCH_BLOCKS, first + k >= pl->global_batches, &out[k]);
+        for (int j = 0; j < PF_PHOTON_BATCH_BLOCKS; j++)
+            free(b[j].p);
+    }
+    free(bufs);
+    if (rc != PF_OK)
+        for (uint32_t k = 0; k < count; k++) {
+            free(out[k].p);
+            memset(&out[k], 0, sizeof out[k]);
+        }
+    return rc;
+}
+
+int pf_photon_trace_batch(const pf_photon_tracer_t *t, uint32_t batch, int threads, volatile int *abort,
+                          pf_photon_batch_t *out)
+{
+    return pf_photon_trace_batches(t, batch, 1, threads, abort, out);
 }
 
 int pf_photon_merge(const pf_scene_t *scene, const pf_accel_t *accel, const pf_settings_t *settings,

@@ -84,6 +84,11 @@ const pf_photon_plan_t *pf_photon_tracer_plan(const pf_photon_tracer_t *t);
  * cancel flag is set; PF_EINVAL for a batch out of the plan; PF_ENOMEM. */
 int pf_photon_trace_batch(const pf_photon_tracer_t *t, uint32_t batch, int threads, volatile int *abort,
                           pf_photon_batch_t *out);
+/* The same for batches [first, first + count) into out[0 .. count), the
+ * threads sharing their blocks (no idle thread at each batch's end). On
+ * failure every out[k] is empty. */
+int pf_photon_trace_batches(const pf_photon_tracer_t *t, uint32_t first, uint32_t count, int threads,
+                            volatile int *abort, pf_photon_batch_t *out);
 
 /* Joins every batch of plan (batches[0 .. global + caustic), each's photons
  * freed and nulled) in batch order and builds the maps (pf_photon_build):

@@ -159,12 +159,8 @@ void pf_w_compute_photons(s_worker *w, s_work *it)
     it->ph_out = rc == PF_OK ? calloc(it->ph_count, sizeof *it->ph_out) : NULL;
     if (rc == PF_OK && !it->ph_out)
         rc = PF_ENOMEM;
-    for (uint32_t k = 0; rc == PF_OK && k < it->ph_count; k++) {
-        if (atomic_load(&it->job->cancelled))
-            rc = PF_EINTERRUPTED;
-        else
-            rc = pf_photon_trace_batch(t, it->ph_first + k, w->threads, NULL, &it->ph_out[k]);
-    }
+    if (rc == PF_OK)
+        rc = pf_photon_trace_batches(t, it->ph_first, it->ph_count, w->threads, NULL, it->ph_out);
     pf_photon_tracer_free(&t);
     if (rc != PF_OK)
         snprintf(it->error, sizeof it->error, "photon batches %" PRIu32 "+%" PRIu32 ": %s", it->ph_first, it->ph_count,

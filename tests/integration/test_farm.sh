@@ -723,8 +723,10 @@ photon_test() {
         local remote
         remote=$(grep -oE '[0-9]+ on the workers' "$T/${n}_coord.err" | tail -n 1 | grep -oE '^[0-9]+')
         check "12: the log says the workers traced photon batches (${remote:-none})" gt "${remote:-0}" 0
-        [ "$kill" = 1 ] && check "12: the log declares the killed worker dead" logged "$T/${n}_coord.err" \
-            "${n}_b.*(dead|lost|silent)"
+        if [ "$kill" = 1 ]; then
+            check "12: the log declares the killed worker dead" logged "$T/${n}_coord.err" "${n}_b.*(dead|lost|silent)"
+            check "12: ... and its photon batches went back" logged "$T/${n}_coord.err" "${n}_b.*photon batches"
+        fi
         note "12: $(grep -E 'photon pass spread' "$T/${n}_coord.err" | sed 's/.*summary: //')"
     fi
     stop "$wa" "$wb"
