@@ -155,6 +155,7 @@ int pf_fm_photons_release(pf_fm_t *f, int wi)
 void pf_fm_photons_end(pf_fm_t *f)
 {
     pf_fm_photons_t *p = &f->ph;
+    f->ph_published = 0; /* the blob server has the JOB's blobs from now on */
     if (!p->phq) {
         pf_photon_tracer_free(&p->tracer);
         pf_framed_blob_free(&p->early_fb);
