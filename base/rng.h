@@ -24,7 +24,7 @@ typedef struct pf_rng {
 /* Streams for the purposes the renderer draws numbers for, so that a photon
  * and a pixel with the same index never share numbers. */
 enum { PF_STREAM_PIXEL = 1, PF_STREAM_GLOBAL_PHOTON = 2, PF_STREAM_CAUSTIC_PHOTON = 3, PF_STREAM_TEST = 4,
-       PF_STREAM_GATHER = 5 };
+       PF_STREAM_GATHER = 5, PF_STREAM_EDGE = 6 };
 
 static inline pf_rng_t pf_rng_make(uint64_t seed, uint32_t purpose, uint64_t index, uint32_t sample)
 {

@@ -59,6 +59,8 @@ static void s_usage(FILE *f)
             "      --threads N          rendering threads (0: all cores)\n"
             "      --seed N             random seed (1); the image depends on nothing else\n"
             "      --exposure STOPS     PNG exposure in stops (0)\n"
+            "      --pixel-filter F     box (each pixel its own square), tent:R (pbrt's triangle\n"
+            "                           filter of radius R pixels) or box+tent:R (box)\n"
             "      --quality PRESET     draft, default or high: spp and photons from the\n"
             "                           benchmark curves (docs/benchmarks.md); other options override\n"
             "      --passes N           progressive: N independent passes, each with --spp samples per\n"
@@ -213,7 +215,7 @@ static void s_default_output(const char *scene, char *out, size_t n)
 
 enum {
     OPT_HDR = 256, OPT_SIZE, OPT_SPP, OPT_PHOTONS, OPT_CPHOTONS, OPT_GATHER, OPT_GFILTER, OPT_LSAMPLES, OPT_GK, OPT_CK, OPT_CR,
-    OPT_DEPTH, OPT_THREADS, OPT_SEED, OPT_EXPOSURE, OPT_TERMS, OPT_WORKERS, OPT_BIND, OPT_MINW, OPT_CSECRET,
+    OPT_DEPTH, OPT_THREADS, OPT_SEED, OPT_EXPOSURE, OPT_PFILTER, OPT_TERMS, OPT_WORKERS, OPT_BIND, OPT_MINW, OPT_CSECRET,
     OPT_CALLOW, OPT_TILE, OPT_HB, OPT_WATCHDOG, OPT_MAXWAIT, OPT_WEXE, OPT_TLIMIT, OPT_QUALITY, OPT_STRICT,
     OPT_LEASE, OPT_STRIKES, OPT_VERIFY, OPT_PASSES, OPT_CKPT, OPT_RESUME,
 };
@@ -262,6 +264,7 @@ static const struct option s_render_opts[] = {
     { "caustic-radius", required_argument, 0, OPT_CR }, { "max-depth", required_argument, 0, OPT_DEPTH },
     { "threads", required_argument, 0, OPT_THREADS }, { "seed", required_argument, 0, OPT_SEED },
     { "exposure", required_argument, 0, OPT_EXPOSURE }, { "terms", required_argument, 0, OPT_TERMS },
+    { "pixel-filter", required_argument, 0, OPT_PFILTER },
     { "quiet", no_argument, 0, 'q' },                { "verbose", no_argument, 0, 'v' },
     { "help", no_argument, 0, 'h' },                 { "workers", required_argument, 0, OPT_WORKERS },
     { "bind", required_argument, 0, OPT_BIND },      { "min-workers", required_argument, 0, OPT_MINW },
@@ -281,7 +284,8 @@ static const struct option s_render_opts[] = {
 typedef struct s_cli_settings {
     int w, h, spp, gather, gfilter, ls, gk, ck, depth, threads;
     uint64_t photons, cphotons, seed;
-    float cr, exposure;
+    float cr, exposure, fbox, ftent;
+    int has_filter;
     int has_w, has_spp, has_gather, has_gfilter, has_ls, has_gk, has_ck, has_depth, has_threads, has_photons, has_cphotons,
         has_seed, has_cr, has_exposure;
 } s_cli_settings;
@@ -355,6 +359,7 @@ static int s_parse_render_args(int argc, char **argv, s_render_args *a)
         case OPT_THREADS: bad = s_parse_int(optarg, 0, 4096, &o->threads); o->has_threads = 1; break;
         case OPT_SEED: bad = s_parse_u64(optarg, &o->seed); o->has_seed = 1; break;
         case OPT_EXPOSURE: bad = s_parse_float(optarg, &o->exposure); o->has_exposure = 1; break;
+        case OPT_PFILTER: bad = pf_pixel_filter_parse(optarg, &o->fbox, &o->ftent) != 0; o->has_filter = 1; break;
         case OPT_TERMS: bad = s_parse_terms(optarg, &a->terms); break;
         case OPT_WORKERS: bad = s_parse_int(optarg, 0, 256, &a->workers); break;
         case OPT_BIND: farm->bind = optarg; break;
@@ -442,6 +447,7 @@ static pf_settings_t s_render_settings(const pf_scene_t *scene, const s_render_a
     if (o->has_threads) s.threads = o->threads;
     if (o->has_seed) s.seed = o->seed;
     if (o->has_exposure) s.exposure = o->exposure;
+    if (o->has_filter) s.filter_box = o->fbox, s.filter_tent = o->ftent;
     return s;
 }
 

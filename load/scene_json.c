@@ -144,7 +144,7 @@ static int s_render(s_ctx_t *c, const cJSON *r)
     static const char *const keys[] = { "width", "height", "spp", "photons", "caustic_photons", "gather",
                                         "gather_filter", "light_samples", "max_depth", "photon_max_depth", "global_k",
                                         "caustic_k", "caustic_radius", "global_radius", "irradiance_stride",
-                                        "seed", "exposure", NULL };
+                                        "seed", "exposure", "pixel_filter", NULL };
     const char *what = "render";
     int rc = pf_json_check_object(c, r, what, keys);
     pf_settings_t *s = &c->scene->settings;
@@ -168,6 +168,10 @@ static int s_render(s_ctx_t *c, const cJSON *r)
         rc = S_FAIL_AT(c, v, "'global_radius' in render must be >= 0 (0: automatic)");
     if (!rc && (v = pf_json_get(r, "exposure")))
         rc = pf_json_float(c, v, "exposure", what, &s->exposure);
+    if (!rc && (v = pf_json_get(r, "pixel_filter")) &&
+        (!cJSON_IsString(v) || pf_pixel_filter_parse(v->valuestring, &s->filter_box, &s->filter_tent) != PF_OK))
+        rc = S_FAIL_AT(c, v, "'pixel_filter' in render must be \"box\", \"box:W\", \"tent:R\" or \"box+tent:R\" "
+                             "with widths in 0..4 pixels");
     return rc;
 }
 

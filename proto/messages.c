@@ -154,7 +154,7 @@ int pf_fingerprint_check(const pf_fingerprint_t *worker, const pf_fingerprint_t 
 
 /* ---- the settings field group ----
  *
- * On the wire, in this order (the declaration order of pf_settings_t), 88
+ * On the wire, in this order (the declaration order of pf_settings_t), 96
  * bytes; int fields travel as two's-complement i32:
  *   i32 width, i32 height, i32 spp,
  *   u64 photons, u64 caustic_photons,
@@ -162,7 +162,7 @@ int pf_fingerprint_check(const pf_fingerprint_t *worker, const pf_fingerprint_t 
  *   i32 global_k, i32 caustic_k,
  *   f32 caustic_radius, f32 global_radius,
  *   i32 irradiance_stride, i32 threads,
- *   u64 seed, f32 exposure, i32 pass
+ *   u64 seed, f32 exposure, i32 pass, f32 filter_box, f32 filter_tent
  */
 
 static uint32_t s_u32_from_int(int v) { return (uint32_t)(int32_t)v; }
@@ -198,6 +198,8 @@ int pf_wr_settings(pf_buf_t *b, const pf_settings_t *s)
     W(pf_wr_u64(b, s->seed));
     W(pf_wr_f32(b, s->exposure));
     W(pf_wr_u32(b, s_u32_from_int(s->pass)));
+    W(pf_wr_f32(b, s->filter_box));
+    W(pf_wr_f32(b, s->filter_tent));
     return rc;
 }
 
@@ -300,6 +302,8 @@ static void s_dec_settings(s_dec_t *d, pf_settings_t *s)
     s->seed = s_u64(d, "settings.seed");
     s->exposure = s_f32(d, "settings.exposure");
     s->pass = s_i32(d, "settings.pass");
+    s->filter_box = s_f32(d, "settings.filter_box");
+    s->filter_tent = s_f32(d, "settings.filter_tent");
 }
 
 void pf_rd_settings(pf_rd_t *r, pf_settings_t *s)
@@ -345,6 +349,12 @@ int pf_settings_check(const pf_settings_t *s, char *why, size_t why_len)
         s_out_of_range(why, why_len, "settings.threads", s->threads, 0, INT32_MAX) ||
         s_out_of_range(why, why_len, "settings.pass", s->pass, 0, PF_MAX_PASSES - 1))
         return PF_EINVAL;
+    if (!(s->filter_box >= 0.0f && s->filter_box <= PF_MAX_FILTER_WIDTH && s->filter_tent >= 0.0f &&
+          s->filter_tent <= PF_MAX_FILTER_WIDTH && s->filter_box + s->filter_tent > 0.0f)) {
+        s_whyf(why, why_len, "settings.filter_box %g and filter_tent %g must lie in 0..%g, not both 0",
+               (double)s->filter_box, (double)s->filter_tent, (double)PF_MAX_FILTER_WIDTH);
+        return PF_EINVAL;
+    }
     if (!isfinite(s->exposure)) {
         s_whyf(why, why_len, "settings.exposure %g is not finite", (double)s->exposure);
         return PF_EINVAL;

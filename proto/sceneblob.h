@@ -13,8 +13,9 @@
  * focal_distance (after vfov_deg); 4: materials gained eta, k and alpha
  * (the conductor's, after le); 5: material type 4, the thin dielectric,
  * which an older worker would refuse as malformed; 6: light types 2 and 3,
- * the distant and the infinite light (same record). Older blobs are refused. */
-#define PF_SCENEBLOB_VERSION 6
+ * the distant and the infinite light (same record); 7: the settings gained
+ * the pixel filter (filter_box, filter_tent). Older blobs are refused. */
+#define PF_SCENEBLOB_VERSION 7
 
 /* Serializes a finalized scene into out (reset first). 0 or PF_ENOMEM. */
 int pf_sceneblob_write(const pf_scene_t *scene, pf_buf_t *out);

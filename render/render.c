@@ -5,7 +5,8 @@
  * where the maps are indexed.
  *
  * Parameters (pf_settings_t; defaults in scene.c):
- *   spp            36   camera samples per pixel, stratified kx x ky (box filter)
+ *   spp            36   camera samples per pixel, stratified kx x ky, placed by the
+ *                       pixel filter (filter_box, filter_tent; render/pixel.c)
  *   light_samples  2    shadow rays per camera sample at a non-specular point
  *   gather         1    final-gather rays per camera sample at a diffuse point, scaled by
  *                       the path's throughput (at least 1) below specular splits;
@@ -27,7 +28,9 @@
  *
  *   term        paths                  how
  *   emitted     L S* E                 Le added when a camera path (through
- *                                      S only) hits an emitter's front
+ *                                      S only) hits an emitter's front; at an
+ *                                      emitter's edge the emission seen
+ *                                      directly has rays of its own (pixel.c)
  *   direct      L D S* E  (D = x)      light sampling at x; emitters are never
  *                                      counted when a camera path reaches them
  *                                      from x's own BSDF sampling
@@ -90,6 +93,7 @@
 #include "material/ggx.h"
 #include "photon/irrtex.h"
 #include "render/filter_impl.h"
+#include "render/pixel_impl.h"
 
 /* The camera samples of one pixel reach nearly the same points, and the
  * caustic estimate is a blur of radius r (its k-th photon's distance), so an
@@ -616,6 +620,32 @@ static pf_ray_t s_camera_sample(s_state *st, const s_pattern *pt, int px, int py
         jx = ((float)(s % pt->kx) + jx) / (float)pt->kx;
         jy = ((float)(s / pt->kx) + jy) / (float)pt->ky;
     }
+    pf_pixel_filter(&ctx->settings, &jx, &jy);
+    film->fx = (float)px + jx;
+    film->fy = (float)py + jy;
+    return pf_camera_ray_lens(&ctx->camera, film->fx, film->fy, film->u1, film->u2);
+}
+
+/* Edge pixel (px, py)'s extra camera sample s (spp <= s < spp +
+ * PF_EDGE_SAMPLES; its sample index for the streams it draws): in the
+ * Latin hypercube cell (sx, sy)[s - spp], through the pixel filter, from
+ * its own stream (PF_STREAM_EDGE). */
+static pf_ray_t s_edge_sample(s_state *st, int px, int py, int s, const uint8_t *sx, const uint8_t *sy,
+                              s_film *film)
+{
+    const pf_render_ctx_t *ctx = st->ctx;
+    int j = s - ctx->settings.spp;
+    st->pixel = (uint64_t)py * (uint64_t)ctx->camera.width + (uint64_t)px;
+    st->sample = (uint32_t)s;
+    st->rng = pf_rng_make(ctx->settings.seed, PF_STREAM_EDGE, st->pixel, (uint32_t)j);
+    float jx = ((float)sx[j] + s_u(st)) / (float)PF_EDGE_SAMPLES;
+    float jy = ((float)sy[j] + s_u(st)) / (float)PF_EDGE_SAMPLES;
+    film->u1 = film->u2 = 0.0f;
+    if (ctx->camera.lens_radius > 0.0f) {
+        film->u1 = s_u(st);
+        film->u2 = s_u(st);
+    }
+    pf_pixel_filter(&ctx->settings, &jx, &jy);
     film->fx = (float)px + jx;
     film->fy = (float)py + jy;
     return pf_camera_ray_lens(&ctx->camera, film->fx, film->fy, film->u1, film->u2);
@@ -742,6 +772,7 @@ struct pf_tile_plan {
     int x0, y0, w, h;
     int R, filter;
     pf_filter_grid_t grid; /* the tile and its border, clipped to the image */
+    float *probe;          /* the emitters' edges (pixel_impl.h), or NULL */
 };
 
 static s_state *s_state_new(const pf_render_ctx_t *ctx, int filtering)
@@ -768,6 +799,7 @@ pf_tile_plan_t *pf_tile_plan_new(const pf_render_ctx_t *ctx, int x0, int y0, int
                 !(ctx->terms & PF_TERM_PHOTONMAP);
     if (p->filter)
         pf_filter_grid_init(&p->grid, p->R, x0, y0, w, h, ctx->camera.width, ctx->camera.height);
+    p->probe = pf_edges_probe(ctx, x0, y0, w, h);
     return p;
 }
 
@@ -805,9 +837,16 @@ void pf_tile_plan_render_row(pf_tile_plan_t *p, int row, float *out)
         }
         double acc[3] = { 0, 0, 0 };
         st->caustic_valid = 0;
-        for (int s = 0; s < p->pt.spp; s++) {
+        /* on an emitter's edge, PF_EDGE_SAMPLES samples more (pixel_impl.h) */
+        int edge = pf_edges_pixel(p->probe, p->x0, p->y0, p->w, px, py);
+        int n = p->pt.spp + (edge ? PF_EDGE_SAMPLES : 0);
+        uint8_t sx[PF_EDGE_SAMPLES], sy[PF_EDGE_SAMPLES];
+        if (edge)
+            pf_edges_strata(ctx, px, py, sx, sy);
+        for (int s = 0; s < n; s++) {
             s_film film;
-            pf_ray_t ray = s_camera_sample(st, &p->pt, px, py, s, &film);
+            pf_ray_t ray = s < p->pt.spp ? s_camera_sample(st, &p->pt, px, py, s, &film)
+                                         : s_edge_sample(st, px, py, s, sx, sy, &film);
             pf_vec3 L = s_radiance(st, ray, 0, pf_v3s(1.0f), 1, 1);
             if (!pf_is_finite3(L) || L.x < 0.0f || L.y < 0.0f || L.z < 0.0f) {
                 /* never let a NaN or negative sample reach the image, but say so */
@@ -821,7 +860,7 @@ void pf_tile_plan_render_row(pf_tile_plan_t *p, int row, float *out)
         }
         float *o = &out[3 * (size_t)x];
         for (int k = 0; k < 3; k++)
-            o[k] = (float)(acc[k] / p->pt.spp);
+            o[k] = (float)(acc[k] / n);
     }
     free(st);
 }
@@ -831,6 +870,7 @@ void pf_tile_plan_free(pf_tile_plan_t *p)
     if (!p)
         return;
     pf_filter_grid_free(&p->grid);
+    free(p->probe);
     free(p);
 }
 

@@ -43,7 +43,51 @@ pf_settings_t pf_settings_default(void)
         .threads = 0,
         .seed = 1,
         .exposure = 0.0f,
+        .filter_box = 1.0f,
+        .filter_tent = 0.0f,
     };
+}
+
+/* One term of a pixel filter spec, name[:width], ending at end; *seen
+ * gains its kind's bit (a kind given twice is an error). */
+static int s_filter_term(const char *p, const char *end, float *box, float *tent, unsigned *seen)
+{
+    size_t n = (size_t)(end - p);
+    const char *colon = memchr(p, ':', n);
+    size_t name = colon ? (size_t)(colon - p) : n;
+    float w = 1.0f;
+    if (colon) {
+        char num[32];
+        size_t k = (size_t)(end - colon - 1);
+        if (k == 0 || k >= sizeof num)
+            return PF_EINVAL;
+        memcpy(num, colon + 1, k);
+        num[k] = '\0';
+        char *stop;
+        w = strtof(num, &stop);
+        if (*stop || !(w >= 0.0f && w <= PF_MAX_FILTER_WIDTH))
+            return PF_EINVAL;
+    }
+    unsigned bit = name == 3 && !memcmp(p, "box", 3) ? 1u : name == 4 && !memcmp(p, "tent", 4) ? 2u : 0u;
+    if (!bit || (*seen & bit))
+        return PF_EINVAL;
+    *seen |= bit;
+    *(bit == 1u ? box : tent) = w;
+    return PF_OK;
+}
+
+int pf_pixel_filter_parse(const char *spec, float *box, float *tent)
+{
+    float b = 0.0f, t = 0.0f;
+    unsigned seen = 0;
+    const char *plus = strchr(spec, '+');
+    const char *end = spec + strlen(spec);
+    if (s_filter_term(spec, plus ? plus : end, &b, &t, &seen) != PF_OK ||
+        (plus && s_filter_term(plus + 1, end, &b, &t, &seen) != PF_OK) || !(b + t > 0.0f))
+        return PF_EINVAL;
+    *box = b;
+    *tent = t;
+    return PF_OK;
 }
 
 pf_material_t pf_material_default(const char *name)

@@ -126,7 +126,23 @@ typedef struct pf_settings {
      * photon estimates average over a disc shrunk by pf_pass_shrink2(pass)
      * (photon/photonmap.h). */
     int pass;
+    /* The pixel filter: a box filter_box pixels wide convolved with a tent
+     * of radius filter_tent pixels (box 1, tent 0: each pixel averages the
+     * light over its own square; box 0, tent 1: pbrt's "triangle" filter of
+     * radius 1; box 1, tent 0.5: a tent of radius 1 at twice the size,
+     * box-downsampled by 2). Camera samples are drawn from the filter, each
+     * with weight one for its pixel (filter importance sampling). */
+    float filter_box, filter_tent;
 } pf_settings_t;
+
+/* The widest box and tent of the pixel filter, in pixels. */
+#define PF_MAX_FILTER_WIDTH 4.0f
+
+/* Reads a pixel filter: "box" (box 1), "box:W", "tent" (radius 1),
+ * "tent:R", or a box and a tent joined by '+' ("box+tent:0.5"); widths in
+ * pixels, within 0..PF_MAX_FILTER_WIDTH, not both zero. 0 with *box and
+ * *tent set, or PF_EINVAL (neither touched). */
+int pf_pixel_filter_parse(const char *spec, float *box, float *tent);
 
 pf_settings_t pf_settings_default(void);
 

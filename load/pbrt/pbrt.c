@@ -450,6 +450,55 @@ static int s_integrator(pf_pbrt_t *c, pf_pbrt_loc_t loc)
     return rc;
 }
 
+/* PixelFilter: box and triangle as they are (a box of width 2 xradius, a
+ * tent of radius xradius; x and y radii averaged); gaussian (pbrt-v4's
+ * default, also without a PixelFilter: radius 1.5, sigma 0.5) as the tent
+ * of the same variance; mitchell, lanczos and sinc, whose lobes go
+ * negative, as a box, with a warning. */
+#define S_GAUSSIAN_TENT 1.1733f /* sqrt(6 var) of pbrt-v4's default gaussian, var 0.2295 */
+
+static int s_pixel_filter(pf_pbrt_t *c, pf_pbrt_loc_t loc)
+{
+    char *type = NULL;
+    pf_pbrt_params_t ps;
+    int rc = s_type_params(c, "PixelFilter", &type, &ps);
+    int box = type && !strcmp(type, "box"), tri = type && !strcmp(type, "triangle");
+    int gauss = type && !strcmp(type, "gaussian");
+    double def = box ? 0.5 : tri ? 2.0 : gauss ? 1.5 : 2.0, xr = def, yr = def, sigma = 0.5;
+    if (rc == PF_OK)
+        rc = pf_pbrt_get_float(c, &ps, "xradius", def, &xr);
+    if (rc == PF_OK)
+        rc = pf_pbrt_get_float(c, &ps, "yradius", def, &yr);
+    if (rc == PF_OK && gauss)
+        rc = pf_pbrt_get_float(c, &ps, "sigma", 0.5, &sigma);
+    double r = 0.5 * (xr + yr);
+    if (rc == PF_OK && !(r > 0.0 && r <= 0.5 * PF_MAX_FILTER_WIDTH))
+        rc = pf_pbrt_error(c, PF_ERANGE, loc, "PixelFilter: radius %g is out of range (0..%g]", r,
+                           0.5 * PF_MAX_FILTER_WIDTH);
+    pf_settings_t *s = &c->scene->settings;
+    if (rc == PF_OK) {
+        s->filter_box = box ? (float)(2.0 * r) : 0.0f;
+        s->filter_tent = box ? 0.0f : tri ? (float)r : 0.0f;
+        if (gauss) {
+            s->filter_tent = (float)fmin(S_GAUSSIAN_TENT * (sigma / 0.5), 0.5 * PF_MAX_FILTER_WIDTH);
+            rc = pf_pbrt_warn(c, loc, "PixelFilter gaussian (approximated)",
+                              "PixelFilter \"gaussian\" is rendered as a tent of the same variance (radius %.3g)",
+                              (double)s->filter_tent);
+        } else if (!box && !tri) {
+            s->filter_box = 1.0f;
+            rc = pf_pbrt_warn(c, loc, "PixelFilter (rendered as a box)",
+                              "PixelFilter \"%s\" is rendered as a one-pixel box", type ? type : "");
+        }
+    }
+    if (rc == PF_OK)
+        c->have_filter = 1;
+    free(type);
+    if (rc == PF_OK && (box || tri || gauss))
+        rc = pf_pbrt_check_unused(c, &ps, "PixelFilter");
+    pf_pbrt_params_free(&ps);
+    return rc;
+}
+
 /* Directives read and reported as ignored, with why. args: leading strings
  * (-1: one or more), then a parameter list when params. */
 static const struct {
@@ -458,7 +507,6 @@ static const struct {
     const char *why;
 } s_ignored_list[] = {
     { "Sampler", 1, 1, 1, "photonfarm's own sampler and --spp decide the samples" },
-    { "PixelFilter", 1, 1, 1, "photonfarm averages samples in a box" },
     { "ColorSpace", 1, 0, 0, "colours are read as linear sRGB" },
     { "Option", 0, 1, 0, "pbrt's options do not apply" },
     { "Attribute", 1, 1, 0, "default parameters of shapes, lights and materials are not applied" },
@@ -624,7 +672,7 @@ static const struct {
     { "CoordSysTransform", s_coordsys_transform, S_XFORM },
     { "ReverseOrientation", s_reverse, S_ANY },  { "WorldBegin", s_world_begin, S_OPTIONS },
     { "Camera", s_camera, S_OPTIONS },           { "Film", s_film, S_OPTIONS },
-    { "Integrator", s_integrator, S_OPTIONS },   { "MakeNamedMaterial", s_make_named_material, S_WORLD },
+    { "Integrator", s_integrator, S_OPTIONS },   { "PixelFilter", s_pixel_filter, S_OPTIONS },   { "MakeNamedMaterial", s_make_named_material, S_WORLD },
     { "Material", s_material, S_WORLD },         { "NamedMaterial", s_named_material, S_WORLD },
     { "Texture", s_texture, S_WORLD },           { "LightSource", s_light, S_WORLD },
     { "AreaLightSource", s_area, S_WORLD },      { "Shape", s_shape, S_WORLD },
@@ -796,6 +844,10 @@ int pf_pbrt_load(pf_scene_t *scene, const char *path, const pf_load_opts_t *opts
         rc = pf_pbrt_emit_shapes(&c);
     if (rc == PF_OK)
         s_finish_camera(&c);
+    if (rc == PF_OK && !c.have_filter) { /* pbrt-v4's default filter, the gaussian */
+        scene->settings.filter_box = 0.0f;
+        scene->settings.filter_tent = S_GAUSSIAN_TENT;
+    }
     pf_pbrt_report(&c);
     s_free(&c);
     return rc;

@@ -210,6 +210,7 @@ typedef struct pf_pbrt {
     int in_world;
     int xform_end_only; /* ActiveTransform EndTime: transforms move the end transform alone */
     int have_camera;
+    int have_filter; /* a PixelFilter was read (else pbrt-v4's default gaussian) */
     pf_pbrt_m4 camera_from_world;
     pf_pbrt_coordsys_t *coordsys;
     size_t ncoordsys, cap_coordsys;

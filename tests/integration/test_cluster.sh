@@ -102,22 +102,9 @@ T0=$SECONDS
 
 # ---- clean-up ------------------------------------------------------------------
 
-ns_exists() { ip netns list 2>/dev/null | grep -qE "^$1( |\$)"; }
-
-teardown() {
-    local ns p
-    for ns in "${NAMESPACES[@]}"; do
-        ns_exists "$ns" || continue
-        for p in $(ip netns pids "$ns" 2>/dev/null); do
-            kill -9 "$p" 2>/dev/null
-        done
-    done
-    wait 2>/dev/null
-    for ns in "${NAMESPACES[@]}"; do
-        ns_exists "$ns" && ip netns del "$ns" 2>/dev/null
-    done
-    return 0
-}
+# shellcheck source=tests/integration/netns.sh
+. "$(dirname "$0")/netns.sh"
+teardown() { netns_teardown; }
 cleanup() {
     # (stderr off: bash reports each killed background job)
     teardown 2>/dev/null
@@ -209,36 +196,11 @@ same() {
     return 1
 }
 
-# rx_bytes NS: bytes received on eth0 in namespace NS.
-rx_bytes() {
-    local v
-    v=$(ip netns exec "$1" cat /sys/class/net/eth0/statistics/rx_bytes 2>/dev/null)
-    echo "${v:-0}"
-}
-
 # ---- the network ---------------------------------------------------------------------
 
-# setup_net: four namespaces, three veth pairs, one bridge. Returns non-zero
-# (with the failing command's message in $T/net.err) when the kernel or the
-# container refuses any step.
+# setup_net: four namespaces, three veth pairs, one bridge (netns.sh).
 setup_net() {
-    local ns i=1 pair
-    for ns in "${NAMESPACES[@]}"; do
-        ip netns add "$ns" || return 1
-        ip -n "$ns" link set lo up || return 1
-    done
-    ip -n "$NS_BR" link add br0 type bridge || return 1
-    ip -n "$NS_BR" link set br0 up || return 1
-    for pair in "$NS_C:$PORT_C" "$NS_W1:$PORT_W1" "$NS_W2:$PORT_W2"; do
-        ns=${pair%%:*}
-        local brport=${pair#*:}
-        ip link add eth0 netns "$ns" type veth peer name "$brport" netns "$NS_BR" || return 1
-        ip -n "$NS_BR" link set "$brport" master br0 || return 1
-        ip -n "$NS_BR" link set "$brport" up || return 1
-        ip -n "$ns" addr add "$NET.$i/24" dev eth0 || return 1
-        ip -n "$ns" link set eth0 up || return 1
-        i=$((i + 1))
-    done
+    netns_setup "$NET" "$NS_BR" "$NS_C:$PORT_C" "$NS_W1:$PORT_W1" "$NS_W2:$PORT_W2"
 }
 
 # ---- processes -----------------------------------------------------------------------
@@ -330,7 +292,7 @@ done
 part_a() {
     echo "# A. coordinator in $NS_C, workers in $NS_W1 and $NS_W2, CURVE on"
     local coord rx0 rx1
-    rx0=$(rx_bytes "$NS_W1")
+    rx0=$(netns_rx_bytes "$NS_W1")
     coordinator a SMALL --min-workers 2
     coord=$LASTPID
     worker w1 "$NS_W1"
@@ -342,7 +304,7 @@ part_a() {
     check "A: the image is bit-identical to the in-process render" same "$T/a.pfm" "$T/ref_small.pfm"
     check "A: w1 rendered tiles ($(tiles_of "$T/a.err" w1))" gt "$(tiles_of "$T/a.err" w1)" 0
     check "A: w2 rendered tiles ($(tiles_of "$T/a.err" w2))" gt "$(tiles_of "$T/a.err" w2)" 0
-    rx1=$(rx_bytes "$NS_W1")
+    rx1=$(netns_rx_bytes "$NS_W1")
     # The photon-map blob alone is about 4 MB: it must have crossed w1's veth.
     check "A: w1's link carried the scene and the maps ($(((rx1 - rx0) / 1000)) kB received on eth0)" \
         gt $((rx1 - rx0)) 3000000
@@ -448,10 +410,8 @@ part_d() {
         skip "D: tc is not installed (Debian package iproute2): the bandwidth-limited link is not tested"
         return 0
     fi
-    if ! ip netns exec "$NS_BR" tc qdisc add dev "$PORT_W2" root tbf rate "${TBF_RATE_MBIT}mbit" \
-        burst 32kb latency 400ms 2>"$T/tc.err" ||
-        ! ip netns exec "$NS_W2" tc qdisc add dev eth0 root tbf rate "${TBF_RATE_MBIT}mbit" \
-            burst 32kb latency 400ms 2>>"$T/tc.err"; then
+    if ! netns_tbf "$NS_BR" "$PORT_W2" "$TBF_RATE_MBIT" 2>"$T/tc.err" ||
+        ! netns_tbf "$NS_W2" eth0 "$TBF_RATE_MBIT" 2>>"$T/tc.err"; then
         skip "D: this kernel refuses the tbf qdisc ($(tail -n 1 "$T/tc.err")): the bandwidth-limited link is not tested"
         return 0
     fi

@@ -313,11 +313,13 @@ td() {
     coord=$LASTPID
     start forge "$HOS" "tcp://127.0.0.1:$port" forge 2
     forge=$LASTPID
-    wait_log "$T/forge_coord.err" 'worker hostile-forge ready' 60
-    worker forge_w "$port"
-    ww=$LASTPID
+    # The honest worker joins only once the forger is done: joining earlier,
+    # it could itself land in the forger's dead slot (on a slow host), and
+    # the forger's second connection would then get a fresh one.
     wait_exit "$forge" 90
     frc=$rc
+    worker forge_w "$port"
+    ww=$LASTPID
     check "d: pf_hostile forge got a lease and sent its RESULT (exit $frc)" eq "$frc" 0 || show "$T/forge.out"
     note "d: $(sed 's/^pf_hostile //' "$T/forge.out")"
     wait_exit "$coord" 120

@@ -275,7 +275,7 @@ static s_offsets_t s_walk(const uint8_t *d)
     o.reserved = at;
     at += 2;
     at += 2 + s_str_len_at(d + at); /* path */
-    at += 88;                       /* settings */
+    at += 96;                       /* settings */
     o.has_camera = at;
     at += 1 + 40;
     o.fov_shorter = at;

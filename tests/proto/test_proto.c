@@ -398,7 +398,7 @@ static void test_settings_group(void)
     s.seed = 0x8000000000000001ULL;
     s.threads = 3;
     pf_buf_t b = { 0 };
-    CHECK(pf_wr_settings(&b, &s) == 0 && b.len == 88, "settings group is 88 bytes (got %zu)", b.len);
+    CHECK(pf_wr_settings(&b, &s) == 0 && b.len == 96, "settings group is 96 bytes (got %zu)", b.len);
     pf_rd_t r = pf_rd_make(b.data, b.len);
     pf_settings_t t;
     memset(&t, 0xee, sizeof t);
@@ -640,7 +640,7 @@ static void s_corrupt_handshake(void)
 static void s_corrupt_job(void)
 {
     /* JOB: four u64 then the settings at 48 (layout in messages.c), pass at
-     * 132, terms at 136, tile_size at 140. */
+     * 132, the pixel filter at 136 and 140, terms at 144, tile_size at 148. */
     const s_patch_t job[] = {
         { 48, 4, 0, "settings.width 0", 0 },
         { 48, 4, 65537, "settings.width", 0 },
@@ -657,6 +657,9 @@ static void s_corrupt_job(void)
         { 96, 4, 1025, "settings.global_k", 0 },
         { 100, 4, 0, "settings.caustic_k", 0 },
         { 100, 4, 1025, "settings.caustic_k", 0 },
+        { 136, 4, 0x40a00000u, "settings.filter_box 5 and filter_tent 0", 0 },
+        { 140, 4, 0xbf800000u, "settings.filter_box 1 and filter_tent -1", 0 },
+        { 136, 4, 0, "settings.filter_box 0 and filter_tent 0 must lie", 0 },
         { 104, 4, 0x7fc00000u, "settings.caustic_radius is not a finite number", 0 },
         { 104, 4, 0xbf800000u, "settings.caustic_radius -1 must be finite and >= 0", 0 },
         { 108, 4, 0x7f800000u, "settings.global_radius", 0 },
@@ -666,10 +669,10 @@ static void s_corrupt_job(void)
         { 128, 4, 0xff800000u, "settings.exposure", 0 },
         { 132, 4, 0xffffffffu, "settings.pass -1", 0 },
         { 132, 4, PF_MAX_PASSES, "settings.pass", 0 },
-        { 136, 4, 0, "terms 0", 0 },
-        { 136, 4, 32, "terms 32", 0 },
-        { 140, 4, 0, "tile_size 0", 0 },
-        { 140, 4, 257, "tile_size", 0 },
+        { 144, 4, 0, "terms 0", 0 },
+        { 144, 4, 32, "terms 32", 0 },
+        { 148, 4, 0, "tile_size 0", 0 },
+        { 148, 4, 257, "tile_size", 0 },
     };
     s_patch_test(PF_MSG_JOB, job, NPATCH(job));
 }
