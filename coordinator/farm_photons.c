@@ -32,6 +32,8 @@
 #include "coordinator/farm_impl.h"
 #include "proto/sceneblob.h"
 
+_Static_assert(PF_PHOTON_MAX_BATCHES == PF_PROTO_MAX_BATCHES, "a pass's batches fit PHOTON_REQ and PHOTONS");
+
 #define S_LEASE_TIMEOUT_S 30.0 /* a batch leased this long goes to someone else (the first one waits for the scene) */
 
 int pf_fm_photons_spread(pf_fm_photons_t *p, pf_photon_maps_t *maps)
