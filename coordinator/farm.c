@@ -131,7 +131,9 @@ static void s_photon_pass(pf_fm_photons_t *p)
     }
     double t0 = pf_now();
     pf_frame_drop_maps(fr);
-    if (p->rc == PF_OK)
+    if (p->rc == PF_OK && p->spread)
+        p->rc = pf_fm_photons_spread(p, &fr->maps);
+    else if (p->rc == PF_OK)
         p->rc = pf_photon_pass(p->scene, fr->accel, fr->lights, &p->settings, &fr->maps, &p->stats);
     if (p->rc) {
         pf_error_set(&p->err, p->rc, NULL, 0, "photon pass failed: %s", pf_strerror(p->rc));
@@ -348,6 +350,8 @@ static int s_open_socket(pf_fm_t *f, pf_error_t *err)
         return pf_error_set(err, PF_EIO, NULL, 0, "cannot create a ZeroMQ socket: %s", zmq_strerror(zmq_errno()));
     int one = 1, linger = 1000, hwm = opts->send_hwm > 0 ? opts->send_hwm : 256;
     int64_t maxmsg = (int64_t)12 * f->ts * f->ts + 4096; /* RESULT: 3 floats a pixel, and room for the rest */
+    if (!opts->photons_here)
+        maxmsg = PF_PROTO_MAX_MESSAGE; /* PHOTONS: up to a chunk's worth of photons */
     if (maxmsg > (int64_t)PF_PROTO_MAX_MESSAGE)
         maxmsg = PF_PROTO_MAX_MESSAGE;
     zmq_setsockopt(f->sock, ZMQ_ROUTER_MANDATORY, &one, sizeof one);
@@ -425,6 +429,7 @@ static int s_start_photons(pf_fm_t *f, const pf_scene_t *scene, int pass, const 
         f->ph.budget = f->o->budget;
         f->ph.terms = terms;
         f->ph.progressive = pf_fm_progressive(f);
+        f->ph.spread = !f->o->photons_here;
         if (f->resumed_pass >= 0 && (f->resumed.ntiles > 0 || f->resumed_pass > 0)) {
             /* Resuming: the pass under way, with its settings as they were
              * planned when it has tiles done, else planned afresh. */
@@ -459,6 +464,7 @@ static int s_on_photons_done(pf_fm_t *f, pf_error_t *err)
     pf_farm_summary_t *sum = f->sum;
     pthread_join(f->phtid, NULL);
     f->ph_started = 0;
+    pf_fm_photons_end(f);
     if (f->ph.rc != PF_OK) {
         *err = f->ph.err;
         return f->ph.rc;
@@ -685,6 +691,7 @@ static int s_event_loop(pf_fm_t *f, volatile int *stop, pf_error_t *err)
         if (pr > 0)
             s_recv_burst(f);
         s_tick(f);
+        pf_fm_photons_tick(f);
         pf_fm_verify_tick(f);
         pf_fm_evict_pending(f);
         if (f->job_ready) {
@@ -738,7 +745,7 @@ static void s_sum_up(pf_fm_t *f)
     sum->slots_reused = f->reg.reused;
     for (int i = 0; i < f->reg.nw; i++) {
         const pf_worker_t *w = &f->reg.w[i];
-        if (!w->tiles)
+        if (!w->tiles && !w->ph_batches)
             continue;
         int k = 0;
         while (k < sum->nper_worker && strcmp(sum->per_worker[k].name, w->name) != 0)
@@ -748,9 +755,11 @@ static void s_sum_up(pf_fm_t *f)
                 continue;
             snprintf(sum->per_worker[k].name, sizeof sum->per_worker[k].name, "%s", w->name);
             sum->per_worker[k].tiles = 0;
+            sum->per_worker[k].photon_batches = 0;
             sum->nper_worker++;
         }
         sum->per_worker[k].tiles += w->tiles;
+        sum->per_worker[k].photon_batches += w->ph_batches;
     }
 }
 
@@ -768,6 +777,9 @@ static void s_free(pf_fm_t *f)
             pf_debug("stopping: waiting for the photon pass to end (%.0f s in so far)", pf_now() - f->t0);
         pthread_join(f->phtid, NULL);
     }
+    pf_phq_free(&f->ph.phq);
+    pf_photon_tracer_free(&f->ph.tracer);
+    pf_framed_blob_free(&f->ph.early_fb);
     if (f->sock)
         zmq_close(f->sock);
     if (f->zap)
@@ -861,8 +873,14 @@ void pf_farm_summary_log(const pf_farm_summary_t *s)
                 (unsigned long long)s->mismatches, s->mismatches == 1 ? "" : "es",
                 s->liars ? (s->liars == 1 ? "worker " : "workers ") : "no worker evicted",
                 s->liars ? s->liar_names : "", s->liars ? " evicted" : "", (unsigned long long)s->rerendered);
+    if (s->ph_batches)
+        pf_info("summary: photon pass spread: %llu batches, %llu traced on the coordinator (%llu of them also leased), "
+                "%llu on the workers, %llu late or duplicate PHOTONS dropped, %llu leases expired; %.2f Mphotons/s",
+                (unsigned long long)s->ph_batches, (unsigned long long)s->ph_local, (unsigned long long)s->ph_stolen,
+                (unsigned long long)s->ph_remote, (unsigned long long)s->ph_stale, (unsigned long long)s->ph_expired,
+                s->ph_trace_s > 0 ? (double)s->ph_emitted / s->ph_trace_s / 1e6 : 0.0);
     for (int i = 0; i < s->nper_worker; i++)
-        pf_info("summary: worker %s rendered %llu tiles", s->per_worker[i].name,
-                (unsigned long long)s->per_worker[i].tiles);
+        pf_info("summary: worker %s rendered %llu tiles, traced %llu photon batches", s->per_worker[i].name,
+                (unsigned long long)s->per_worker[i].tiles, (unsigned long long)s->per_worker[i].photon_batches);
 }
 

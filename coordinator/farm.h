@@ -57,6 +57,8 @@ typedef struct pf_farm_opts {
     double verify;            /* fraction of tiles rendered again on a second worker and compared bit for bit,
                                  besides each worker's first result once another worker can check it (default
                                  0.02; 0: no checks) */
+    int photons_here;         /* the first photon pass is traced on the coordinator alone, not spread over the
+                                 workers in batches (farm_photons.c) */
 } pf_farm_opts_t;
 
 void pf_farm_opts_default(pf_farm_opts_t *o);
@@ -67,6 +69,7 @@ void pf_farm_opts_default(pf_farm_opts_t *o);
 typedef struct pf_farm_worker_stat {
     char name[64];
     uint64_t tiles;
+    uint64_t photon_batches; /* first photon pass's batches it traced (ph_batches.h) */
 } pf_farm_worker_stat_t;
 
 typedef struct pf_farm_summary {
@@ -91,6 +94,12 @@ typedef struct pf_farm_summary {
     double error_est, photon_total_s;
     size_t unreached;
     pf_settings_t settings; /* the last pass's */
+    /* The first photon pass, spread over the workers (ph_batches.h): its
+     * batches, those traced here and by workers, worker results dropped as
+     * late or duplicate, leases expired, batches traced here while leased;
+     * its photons emitted and the tracing's wall time. */
+    uint64_t ph_batches, ph_local, ph_remote, ph_stale, ph_expired, ph_stolen, ph_emitted;
+    double ph_trace_s;
 } pf_farm_summary_t;
 
 /* Renders scene with settings through workers into *img (allocated here).

@@ -14,6 +14,7 @@
 #include "coordinator/budget.h"
 #include "coordinator/checkpoint.h"
 #include "coordinator/leases.h"
+#include "coordinator/ph_batches.h"
 #include "coordinator/progress.h"
 #include "coordinator/registry.h"
 #include "coordinator/transfer.h"
@@ -47,6 +48,17 @@ typedef struct pf_fm_photons {
     pf_frame_t frame; /* the scene's accel and lights, then the maps */
     pf_photon_stats_t stats;
     pf_framed_blob_t scene_fb, maps_fb; /* the blobs, cut into chunk frames */
+    /* The first pass's photons spread over the workers (farm_photons.c):
+     * spread says it may be; the thread frames the scene blob early (the
+     * workers trace over it), makes the batch table and then sets
+     * phq_ready; the event loop publishes the blob, leases batches, and
+     * frees the table once the thread is joined. */
+    int spread;
+    pf_framed_blob_t early_fb;
+    uint64_t early_hash, early_size;
+    pf_photon_tracer_t *tracer;
+    pf_phq_t *phq;
+    int phq_ready; /* atomic */
     uint64_t scene_hash, maps_hash, scene_size, maps_size;
     int rc;
     volatile int done;
@@ -116,6 +128,7 @@ typedef struct pf_fm {
     int ckpt_done;
     pf_ckpt_t resumed;
     int resumed_pass;
+    int ph_published; /* the early scene blob is with the blob server */
 } pf_fm_t;
 
 /* farm_peers.c */
@@ -182,6 +195,25 @@ int pf_fm_resume_load(pf_fm_t *f, const pf_scene_t *scene, const pf_settings_t *
 /* Puts the resumed tiles into the image and marks them done, as the
  * resumed pass begins. */
 int pf_fm_resume_tiles(pf_fm_t *f, pf_error_t *err);
+
+/* farm_photons.c */
+
+/* Photon thread: the pass's photons traced in batches, here and on the
+ * workers, merged and built into maps (pf_phq_*). 0 or a status. */
+int pf_fm_photons_spread(pf_fm_photons_t *p, pf_photon_maps_t *maps);
+/* Event loop: publishes the scene blob, expires leases, leases batches to
+ * idle welcomed workers. */
+void pf_fm_photons_tick(pf_fm_t *f);
+/* A PHOTONS from worker wi. */
+void pf_fm_on_photons(pf_fm_t *f, int wi, const pf_msg_t *m);
+/* 1 when worker wi (welcomed, no JOB yet) may fetch blob `hash`: the scene
+ * blob of the photon pass it was asked to trace. */
+int pf_fm_photons_blob_ok(const pf_fm_t *f, int wi, uint64_t hash);
+/* Worker wi's photon batches go back to the free list; how many. */
+int pf_fm_photons_release(pf_fm_t *f, int wi);
+/* The photon thread is joined: the table's figures into the summary, the
+ * table freed, a log line. */
+void pf_fm_photons_end(pf_fm_t *f);
 
 /* verify.c */
 

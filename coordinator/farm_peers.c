@@ -1,7 +1,8 @@
 /* farm_peers.c: the farm's conversation with its workers (farm_impl.h):
  * sending, leasing tiles, receiving and judging messages, strikes and
  * eviction. The policy against hostile peers is here: a worker fetches
- * blobs only between its JOB and its READY, through a window (transfer.h);
+ * blobs only between its JOB and its READY (or the scene blob after a
+ * PHOTON_REQ, farm_photons.c), through a window (transfer.h);
  * holds at most its tile credit; may return only the tiles leased to its
  * worker id; and every malformed or out-of-turn message is a strike.
  *
@@ -75,9 +76,11 @@ static void s_refuse(pf_fm_t *f, const uint8_t *id, size_t idlen, const char *wh
 /* Returns a worker's leased tiles to the front of the queue. */
 void pf_fm_release_worker(pf_fm_t *f, int wi, const char *why)
 {
+    int nb = pf_fm_photons_release(f, wi);
     int n = pf_leases_release(&f->L, &f->reg, wi);
-    if ((n || why) && pf_fm_may_log(&f->peer_log, 10.0))
-        pf_warn("worker %s %s: %d tile%s re-issued", f->reg.w[wi].name, why ? why : "released", n, n == 1 ? "" : "s");
+    if ((n || nb || why) && pf_fm_may_log(&f->peer_log, 10.0))
+        pf_warn("worker %s %s: %d tile%s re-issued%s", f->reg.w[wi].name, why ? why : "released", n, n == 1 ? "" : "s",
+                nb ? " (and its photon batches)" : "");
 }
 
 void pf_fm_declare_dead(pf_fm_t *f, int wi, const char *why)
@@ -333,7 +336,7 @@ static void s_on_blob_req(pf_fm_t *f, int wi, const pf_msg_blob_req_t *r)
     pf_worker_t *w = &f->reg.w[wi];
     char why[320];
     int rc = 1;
-    if (w->state != PF_W_JOB_SENT)
+    if (w->state != PF_W_JOB_SENT && !(w->state == PF_W_HELLO && pf_fm_photons_blob_ok(f, wi, r->hash)))
         snprintf(why, sizeof why, "BLOB_REQ %s", w->state == PF_W_HELLO ? "before its JOB" : "after READY");
     else
         rc = pf_xfer_request(f->xfer, wi, r, why, sizeof why);
@@ -402,6 +405,7 @@ static void s_dispatch(pf_fm_t *f, int wi, const pf_msg_t *m)
     case PF_MSG_BLOB_REQ: s_on_blob_req(f, wi, &m->u.blob_req); break;
     case PF_MSG_READY: s_on_ready(f, wi, &m->u.ready); break;
     case PF_MSG_RESULT: s_on_result(f, wi, &m->u.result); break;
+    case PF_MSG_PHOTONS: pf_fm_on_photons(f, wi, m); break;
     case PF_MSG_BYE:
         if (pf_fm_may_log(&f->peer_log, 10.0)) {
             char reason[1024];
@@ -461,7 +465,8 @@ void pf_fm_on_frame(pf_fm_t *f, const uint8_t *id, size_t idlen, const char *key
         return;
     }
     w->last_seen = pf_now();
-    if (m.type != PF_MSG_BYE && m.job != f->job && m.type != PF_MSG_HEARTBEAT) {
+    if (m.type != PF_MSG_BYE && m.job != f->job && m.type != PF_MSG_HEARTBEAT &&
+        !(m.type == PF_MSG_PHOTONS && m.job == f->ph.job)) {
         pf_debug("dropped %s for job %llu from %s", pf_msg_type_name(m.type), (unsigned long long)m.job, peer);
         return;
     }

@@ -43,6 +43,8 @@ typedef struct pf_worker {
     uint64_t blob_sent; /* bytes of scene and maps sent to it */
     int strikes;
     int checked;        /* one of its results was picked for a check on another worker (verify.c) */
+    int ph_asked;       /* it was sent a PHOTON_REQ: it may fetch the scene blob before its JOB */
+    uint64_t ph_batches; /* photon batches of its that counted */
 } pf_worker_t;
 
 typedef struct pf_registry {

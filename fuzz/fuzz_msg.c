@@ -39,6 +39,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     PF_FUZZ_REQUIRE(strcmp(pf_msg_type_name(msg.type), "UNKNOWN") != 0, "type %d has no name", (int)msg.type);
 
     float *pixels = NULL;
+    pf_msg_photon_t *photons = NULL;
     switch (msg.type) {
     case PF_MSG_HELLO: {
         pf_fingerprint_t self = pf_frame_fingerprint();
@@ -63,6 +64,30 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         msg.u.result.rgb = pixels;
         break;
     }
+    case PF_MSG_PHOTON_REQ: {
+        char text[256];
+        PF_FUZZ_REQUIRE(pf_settings_check(&msg.u.photon_req.settings, text, sizeof text) == PF_OK,
+                        "a decoded PHOTON_REQ has settings out of range: %s", text);
+        PF_FUZZ_REQUIRE(msg.u.photon_req.count >= 1 &&
+                            (uint64_t)msg.u.photon_req.first + msg.u.photon_req.count <= PF_PROTO_MAX_BATCHES,
+                        "PHOTON_REQ range %u+%u", msg.u.photon_req.first, msg.u.photon_req.count);
+        break;
+    }
+    case PF_MSG_PHOTONS: {
+        const pf_msg_photons_t *p = &msg.u.photons;
+        PF_FUZZ_REQUIRE(p->first + p->n <= p->total && p->indirect <= p->total, "PHOTONS counts");
+        photons = malloc((p->n + 1) * sizeof *photons);
+        PF_FUZZ_REQUIRE(photons != NULL, "out of memory");
+        for (uint32_t i = 0; i < p->n; i++) {
+            pf_msg_photon_get(p, i, &photons[i]);
+            for (int c = 0; c < 3; c++)
+                PF_FUZZ_REQUIRE(isfinite(photons[i].pos[c]) && isfinite(photons[i].power[c]) &&
+                                    photons[i].power[c] >= 0.0f,
+                                "photon %u", i);
+        }
+        msg.u.photons.photons = photons;
+        break;
+    }
     default:
         break;
     }
@@ -75,5 +100,6 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
                     out.len, size);
     pf_buf_free(&out);
     free(pixels);
+    free(photons);
     return 0;
 }

@@ -170,6 +170,27 @@ static void s_messages(void)
     m.type = PF_MSG_BYE;
     snprintf(m.u.bye.reason, sizeof m.u.bye.reason, "shutting down");
     s_put_msg("seed-bye", &m);
+
+    memset(&m, 0, sizeof m);
+    m.type = PF_MSG_PHOTON_REQ;
+    m.job = 7;
+    m.u.photon_req.scene_hash = 0x0123456789abcdefull;
+    m.u.photon_req.scene_size = 4096;
+    m.u.photon_req.settings = pf_settings_default();
+    m.u.photon_req.first = 12;
+    m.u.photon_req.count = 2;
+    s_put_msg("seed-photon-req", &m);
+
+    pf_msg_photon_t ph[3];
+    for (int i = 0; i < 3; i++)
+        ph[i] = (pf_msg_photon_t){ { 0.25f * (float)i, 1.0f, -0.5f }, { 0.01f, 0.02f * (float)i, 0.0f },
+                                   0x7fff7fffu + (uint32_t)i, 0x00010002u * (uint32_t)(i + 1) };
+    memset(&m, 0, sizeof m);
+    m.type = PF_MSG_PHOTONS;
+    m.job = 7;
+    m.u.photons = (pf_msg_photons_t){ .batch = 12, .total = 40, .first = 37, .rejected = 1, .indirect = 20, .n = 3,
+                                      .photons = ph };
+    s_put_msg("seed-photons", &m);
 }
 
 /* ---- scene blobs and photon maps ---- */

@@ -42,8 +42,6 @@
 #include "material/ggx.h"
 #include "photon/irradiance.h"
 
-#define PF_PHOTON_BLOCK 4096
-
 static volatile int *s_cancel;
 
 void pf_photon_set_cancel(volatile int *flag) { s_cancel = flag; }
@@ -54,6 +52,7 @@ typedef struct s_buf {
     pf_photon_t *p;
     size_t n, cap;
     uint64_t indirect; /* photons stored after a non-specular bounce */
+    uint64_t rejected; /* photons dropped for bad power (batches only) */
 } s_buf;
 
 /* The first growth makes room for 1024 photons rather than pf_reserve's 16,
@@ -269,22 +268,28 @@ static int s_trace_map(const s_ctx *c, uint64_t seed, uint64_t emitted, int caus
     return PF_OK;
 }
 
-int pf_photon_pass(const pf_scene_t *scene, const pf_accel_t *accel, const pf_lights_t *lights,
-                   const pf_settings_t *settings, pf_photon_maps_t *maps, pf_photon_stats_t *stats)
+/* The caustic photons a scene gets (none without specular surfaces, where
+ * the caustic map is skipped) and the specular targets they aim at. */
+static int s_setup(const pf_scene_t *scene, const pf_settings_t *settings, pf_target_t **targets,
+                   uint64_t *caustic_photons, int quiet)
 {
-    memset(maps, 0, sizeof *maps);
-    memset(stats, 0, sizeof *stats);
-    int threads = settings->threads > 0 ? settings->threads : omp_get_num_procs();
-    s_ctx c = { scene, accel, lights, settings->photon_max_depth, NULL, 0 };
-    pf_target_t *targets = NULL;
-    int nt = pf_specular_targets(scene, &targets);
+    int nt = pf_specular_targets(scene, targets);
     if (nt < 0)
         return nt;
-    c.targets = targets;
-    c.ntargets = (size_t)nt;
-    uint64_t caustic_photons = nt > 0 ? settings->caustic_photons : 0;
-    if (nt == 0 && settings->caustic_photons)
+    *caustic_photons = nt > 0 ? settings->caustic_photons : 0;
+    if (nt == 0 && settings->caustic_photons && !quiet)
         pf_info("caustic map skipped: no mirror, glass or conductor surfaces");
+    return nt;
+}
+
+int pf_photon_build(const pf_scene_t *scene, const pf_accel_t *accel, const pf_settings_t *settings,
+                    uint64_t caustic_emitted, pf_photon_t **gp_p, size_t gn, pf_photon_t **cp_p, size_t cn,
+                    pf_photon_maps_t *maps, pf_photon_stats_t *stats)
+{
+    int threads = settings->threads > 0 ? settings->threads : omp_get_num_procs();
+    pf_photon_t *gp = *gp_p, *cp = *cp_p;
+    *gp_p = *cp_p = NULL;
+    memset(maps, 0, sizeof *maps);
     pf_vec3 lo, hi;
     pf_scene_bounds(scene, &lo, &hi);
     float diag = pf_len(pf_sub(hi, lo));
@@ -296,31 +301,13 @@ int pf_photon_pass(const pf_scene_t *scene, const pf_accel_t *accel, const pf_li
     maps->caustic_r2 = cr * cr;
     maps->irradiance_r2 = gr * gr;
     maps->global_emitted = settings->photons;
-    maps->caustic_emitted = caustic_photons;
-
-    double t0 = pf_now();
-    pf_photon_t *gp = NULL, *cp = NULL;
-    size_t gn = 0, cn = 0;
-    int rc = PF_OK;
-    uint64_t unused = 0;
-    if (settings->photons)
-        rc = s_trace_map(&c, settings->seed, settings->photons, 0, threads, &gp, &gn, &stats->rejected,
-                         &stats->indirect_stored);
-    if (rc == PF_OK && caustic_photons)
-        rc = s_trace_map(&c, settings->seed, caustic_photons, 1, threads, &cp, &cn, &stats->rejected, &unused);
-    free(targets);
-    double t1 = pf_now();
-    stats->trace_s = t1 - t0;
-    if (rc != PF_OK) {
-        free(gp);
-        free(cp);
-        return rc;
-    }
+    maps->caustic_emitted = caustic_emitted;
     if (s_cancelled()) {
         free(gp);
         free(cp);
         return PF_EINTERRUPTED;
     }
+    double t1 = pf_now();
     stats->global_stored = gn;
     stats->caustic_stored = cn;
     maps->global = pf_kdtree_build(&gp, gn);
@@ -335,6 +322,7 @@ int pf_photon_pass(const pf_scene_t *scene, const pf_accel_t *accel, const pf_li
      * diffuse point sees a lit one, the final gather would find nothing, and
      * the irradiance it reads need not be computed (pf_photon_skip_gather). */
     stats->gather_skipped = settings->photons > 0 && gn > 0 && stats->indirect_stored == 0;
+    int rc;
     if (s_cancelled()) {
         rc = PF_EINTERRUPTED;
     } else if (stats->gather_skipped) {
@@ -353,6 +341,229 @@ int pf_photon_pass(const pf_scene_t *scene, const pf_accel_t *accel, const pf_li
     }
     stats->irradiance_points = pf_kdtree_size(maps->irradiance);
     return PF_OK;
+}
+
+int pf_photon_pass(const pf_scene_t *scene, const pf_accel_t *accel, const pf_lights_t *lights,
+                   const pf_settings_t *settings, pf_photon_maps_t *maps, pf_photon_stats_t *stats)
+{
+    memset(maps, 0, sizeof *maps);
+    memset(stats, 0, sizeof *stats);
+    int threads = settings->threads > 0 ? settings->threads : omp_get_num_procs();
+    s_ctx c = { scene, accel, lights, settings->photon_max_depth, NULL, 0 };
+    pf_target_t *targets = NULL;
+    uint64_t caustic_photons = 0;
+    int nt = s_setup(scene, settings, &targets, &caustic_photons, 0);
+    if (nt < 0)
+        return nt;
+    c.targets = targets;
+    c.ntargets = (size_t)nt;
+
+    double t0 = pf_now();
+    pf_photon_t *gp = NULL, *cp = NULL;
+    size_t gn = 0, cn = 0;
+    int rc = PF_OK;
+    uint64_t unused = 0;
+    if (settings->photons)
+        rc = s_trace_map(&c, settings->seed, settings->photons, 0, threads, &gp, &gn, &stats->rejected,
+                         &stats->indirect_stored);
+    if (rc == PF_OK && caustic_photons)
+        rc = s_trace_map(&c, settings->seed, caustic_photons, 1, threads, &cp, &cn, &stats->rejected, &unused);
+    free(targets);
+    stats->trace_s = pf_now() - t0;
+    if (rc != PF_OK) {
+        free(gp);
+        free(cp);
+        return rc;
+    }
+    return pf_photon_build(scene, accel, settings, caustic_photons, &gp, gn, &cp, cn, maps, stats);
+}
+
+/* ---- batches: the photon pass spread over processes ---- */
+
+struct pf_photon_tracer {
+    s_ctx c;
+    pf_target_t *targets;
+    uint64_t seed;
+    pf_photon_plan_t plan;
+};
+
+static uint32_t s_batches(uint64_t emitted)
+{
+    uint64_t blocks = (emitted + PF_PHOTON_BLOCK - 1) / PF_PHOTON_BLOCK;
+    return (uint32_t)((blocks + PF_PHOTON_BATCH_BLOCKS - 1) / PF_PHOTON_BATCH_BLOCKS);
+}
+
+int pf_photon_tracer_new(const pf_scene_t *scene, const pf_accel_t *accel, const pf_lights_t *lights,
+                         const pf_settings_t *settings, int quiet, pf_photon_tracer_t **out)
+{
+    *out = NULL;
+    pf_photon_tracer_t *t = calloc(1, sizeof *t);
+    if (!t)
+        return PF_ENOMEM;
+    uint64_t caustic = 0;
+    int nt = s_setup(scene, settings, &t->targets, &caustic, quiet);
+    if (nt < 0) {
+        free(t);
+        return nt;
+    }
+    t->c = (s_ctx){ scene, accel, lights, settings->photon_max_depth, t->targets, (size_t)nt };
+    t->seed = settings->seed;
+    t->plan.global_emitted = settings->photons;
+    t->plan.caustic_emitted = caustic;
+    uint64_t gb = s_batches(settings->photons), cb = s_batches(caustic);
+    if (gb + cb > PF_PHOTON_MAX_BATCHES) {
+        free(t->targets);
+        free(t);
+        return PF_EINVAL;
+    }
+    t->plan.global_batches = (uint32_t)gb;
+    t->plan.caustic_batches = (uint32_t)cb;
+    *out = t;
+    return PF_OK;
+}
+
+void pf_photon_tracer_free(pf_photon_tracer_t **t_p)
+{
+    if (!*t_p)
+        return;
+    free((*t_p)->targets);
+    free(*t_p);
+    *t_p = NULL;
+}
+
+const pf_photon_plan_t *pf_photon_tracer_plan(const pf_photon_tracer_t *t) { return &t->plan; }
+
+/* Joins a batch's block buffers (freed) into out, in block order. */
+static int s_join(s_buf *bufs, int n, int caustic, pf_photon_batch_t *out)
+{
+    memset(out, 0, sizeof *out);
+    size_t total = 0;
+    for (int k = 0; k < n; k++) {
+        total += bufs[k].n;
+        out->indirect += bufs[k].indirect;
+        out->rejected += bufs[k].rejected;
+    }
+    pf_photon_t *all = malloc((total ? total : 1) * sizeof *all);
+    if (all) {
+        size_t at = 0;
+        for (int k = 0; k < n; k++) {
+            if (bufs[k].n)
+                memcpy(all + at, bufs[k].p, bufs[k].n * sizeof *all);
+            at += bufs[k].n;
+        }
+    }
+    for (int k = 0; k < n; k++) {
+        free(bufs[k].p);
+        bufs[k].p = NULL;
+    }
+    if (!all) {
+        memset(out, 0, sizeof *out);
+        return PF_ENOMEM;
+    }
+    out->p = all;
+    out->n = total;
+    if (caustic)
+        out->indirect = 0; /* only the global map's count matters (the gather skip) */
+    return PF_OK;
+}
+
+int pf_photon_trace_batches(const pf_photon_tracer_t *t, uint32_t first, uint32_t count, int threads,
+                            volatile int *abort, pf_photon_batch_t *out)
+{
+    memset(out, 0, count * sizeof *out);
+    const pf_photon_plan_t *pl = &t->plan;
+    uint32_t nb = pl->global_batches + pl->caustic_batches;
+    if (count == 0 || count > PF_PHOTON_MAX_BATCHES || first >= nb || count > nb - first)
+        return PF_EINVAL;
+    /* One work item a block, over every block of the batches, so that the
+     * threads stay busy across batch boundaries. */
+    size_t nitems = (size_t)count * PF_PHOTON_BATCH_BLOCKS;
+    s_buf *bufs = calloc(nitems, sizeof *bufs);
+    if (!bufs)
+        return PF_ENOMEM;
+    int failed = 0;
+#pragma omp parallel num_threads(threads)
+    {
+        pf_accel_thread_init();
+#pragma omp for schedule(dynamic, 1)
+        for (size_t w = 0; w < nitems; w++) {
+            uint32_t batch = first + (uint32_t)(w / PF_PHOTON_BATCH_BLOCKS);
+            int caustic = batch >= pl->global_batches;
+            uint64_t emitted = caustic ? pl->caustic_emitted : pl->global_emitted;
+            uint64_t block = (uint64_t)(caustic ? batch - pl->global_batches : batch) * PF_PHOTON_BATCH_BLOCKS +
+                             w % PF_PHOTON_BATCH_BLOCKS;
+            uint64_t lo = block * PF_PHOTON_BLOCK;
+            if (lo >= emitted)
+                continue; /* the map's last batch is short */
+            if (s_cancelled() || (abort && *abort)) {
+#pragma omp atomic write
+                failed = PF_EINTERRUPTED;
+                continue;
+            }
+            uint64_t hi = lo + PF_PHOTON_BLOCK < emitted ? lo + PF_PHOTON_BLOCK : emitted;
+            for (uint64_t i = lo; i < hi; i++) {
+                int r = s_trace(&t->c, t->seed, i, emitted, caustic, &bufs[w]);
+                if (r < 0) {
+#pragma omp atomic write
+                    failed = PF_ENOMEM;
+                    break;
+                }
+                bufs[w].rejected += (uint64_t)r;
+            }
+        }
+    }
+    int rc = failed;
+    for (uint32_t k = 0; k < count; k++) {
+        s_buf *b = bufs + (size_t)k * PF_PHOTON_BATCH_BLOCKS;
+        if (rc == PF_OK)
+            rc = s_join(b, PF_PHOTON_BATCH_BLOCKS, first + k >= pl->global_batches, &out[k]);
+        for (int j = 0; j < PF_PHOTON_BATCH_BLOCKS; j++)
+            free(b[j].p);
+    }
+    free(bufs);
+    if (rc != PF_OK)
+        for (uint32_t k = 0; k < count; k++) {
+            free(out[k].p);
+            memset(&out[k], 0, sizeof out[k]);
+        }
+    return rc;
+}
+
+int pf_photon_trace_batch(const pf_photon_tracer_t *t, uint32_t batch, int threads, volatile int *abort,
+                          pf_photon_batch_t *out)
+{
+    return pf_photon_trace_batches(t, batch, 1, threads, abort, out);
+}
+
+int pf_photon_merge(const pf_scene_t *scene, const pf_accel_t *accel, const pf_settings_t *settings,
+                    const pf_photon_plan_t *plan, pf_photon_batch_t *batches, pf_photon_maps_t *maps,
+                    pf_photon_stats_t *stats)
+{
+    uint32_t nb = plan->global_batches + plan->caustic_batches;
+    size_t gn = 0, cn = 0;
+    for (uint32_t b = 0; b < nb; b++) {
+        *(b < plan->global_batches ? &gn : &cn) += batches[b].n;
+        stats->rejected += batches[b].rejected;
+        if (b < plan->global_batches)
+            stats->indirect_stored += batches[b].indirect;
+    }
+    pf_photon_t *gp = malloc((gn ? gn : 1) * sizeof *gp), *cp = malloc((cn ? cn : 1) * sizeof *cp);
+    if (!gp || !cp) {
+        free(gp);
+        free(cp);
+        return PF_ENOMEM;
+    }
+    size_t gi = 0, ci = 0;
+    for (uint32_t b = 0; b < nb; b++) {
+        int global = b < plan->global_batches;
+        if (batches[b].n)
+            memcpy(global ? gp + gi : cp + ci, batches[b].p, batches[b].n * sizeof *gp);
+        *(global ? &gi : &ci) += batches[b].n;
+        free(batches[b].p);
+        batches[b].p = NULL;
+        batches[b].n = 0;
+    }
+    return pf_photon_build(scene, accel, settings, plan->caustic_emitted, &gp, gn, &cp, cn, maps, stats);
 }
 
 /* More than PF_IRRADIANCE_MAX_POINTS points add time and memory but no

@@ -12,6 +12,17 @@
  * wider than their estimates reach (pf_irradiance_points_stride). */
 #define PF_IRRADIANCE_MAX_POINTS ((size_t)500000)
 
+/* Photons are traced in blocks of PF_PHOTON_BLOCK consecutive indices, each
+ * into its own buffer, joined in block order (the determinism rule). */
+#define PF_PHOTON_BLOCK 4096
+/* A batch, the unit the photon pass is spread in over processes, is
+ * PF_PHOTON_BATCH_BLOCKS blocks of one map: joining batches in batch order
+ * joins their blocks in block order, so the maps do not depend on who traced
+ * which batch. At most PF_PHOTON_MAX_BATCHES per pass (a table the coordinator
+ * holds: 2^20 batches are 2^35 photons). */
+#define PF_PHOTON_BATCH_BLOCKS 16
+#define PF_PHOTON_MAX_BATCHES (1u << 20)
+
 typedef struct pf_photon_stats {
     uint64_t global_stored, caustic_stored, irradiance_points;
     uint64_t rejected;          /* photons dropped for non-finite or negative power */
@@ -31,6 +42,61 @@ size_t pf_irradiance_points_stride(size_t stored, const pf_settings_t *settings)
  * so the maps are identical for any thread count. 0 or a status. */
 int pf_photon_pass(const pf_scene_t *scene, const pf_accel_t *accel, const pf_lights_t *lights,
                    const pf_settings_t *settings, pf_photon_maps_t *maps, pf_photon_stats_t *stats);
+
+/* The build half of the photon pass: the global and caustic photons (in
+ * index order; *gp_p and *cp_p taken and nulled, also on failure) into the
+ * kd-trees and the irradiance precompute (settings->threads threads), the
+ * radii from the scene's bounds. stats: global_stored, caustic_stored,
+ * irradiance_points, gather_skipped, build_s and irradiance_s are set;
+ * indirect_stored must be set already (it decides the gather skip). */
+int pf_photon_build(const pf_scene_t *scene, const pf_accel_t *accel, const pf_settings_t *settings,
+                    uint64_t caustic_emitted, pf_photon_t **gp_p, size_t gn, pf_photon_t **cp_p, size_t cn,
+                    pf_photon_maps_t *maps, pf_photon_stats_t *stats);
+
+/* How a pass divides into batches: global batches [0, global_batches),
+ * then caustic ones [global_batches, global_batches + caustic_batches). */
+typedef struct pf_photon_plan {
+    uint64_t global_emitted, caustic_emitted; /* caustic: 0 without specular surfaces */
+    uint32_t global_batches, caustic_batches;
+} pf_photon_plan_t;
+
+/* What one batch stored: its photons in index order and its counters. */
+typedef struct pf_photon_batch {
+    pf_photon_t *p; /* malloc'd */
+    size_t n;
+    uint64_t rejected; /* photons dropped for non-finite or negative power */
+    uint64_t indirect; /* global photons stored after a non-specular bounce (0 for a caustic batch) */
+} pf_photon_batch_t;
+
+/* Traces batches of one pass's photons over (scene, accel, lights) with
+ * settings' seed, photon counts and depth; the scene and its accel and
+ * lights must outlive it. quiet: no log line (a worker's). 0, PF_ENOMEM,
+ * or PF_EINVAL when the pass has more than PF_PHOTON_MAX_BATCHES. */
+typedef struct pf_photon_tracer pf_photon_tracer_t;
+int pf_photon_tracer_new(const pf_scene_t *scene, const pf_accel_t *accel, const pf_lights_t *lights,
+                         const pf_settings_t *settings, int quiet, pf_photon_tracer_t **out);
+void pf_photon_tracer_free(pf_photon_tracer_t **t_p); /* NULL-safe; nulls *t_p */
+const pf_photon_plan_t *pf_photon_tracer_plan(const pf_photon_tracer_t *t);
+
+/* Traces batch `batch` with `threads` OpenMP threads into out (its photons
+ * exactly those pf_photon_pass stores for that range of indices). Stops
+ * early with PF_EINTERRUPTED when *abort (may be NULL) or the process-wide
+ * cancel flag is set; PF_EINVAL for a batch out of the plan; PF_ENOMEM. */
+int pf_photon_trace_batch(const pf_photon_tracer_t *t, uint32_t batch, int threads, volatile int *abort,
+                          pf_photon_batch_t *out);
+/* The same for batches [first, first + count) into out[0 .. count), the
+ * threads sharing their blocks (no idle thread at each batch's end). On
+ * failure every out[k] is empty. */
+int pf_photon_trace_batches(const pf_photon_tracer_t *t, uint32_t first, uint32_t count, int threads,
+                            volatile int *abort, pf_photon_batch_t *out);
+
+/* Joins every batch of plan (batches[0 .. global + caustic), each's photons
+ * freed and nulled) in batch order and builds the maps (pf_photon_build):
+ * the same maps as pf_photon_pass for any split of the tracing. Adds the
+ * batches' counters to stats (zero it first). 0 or a status. */
+int pf_photon_merge(const pf_scene_t *scene, const pf_accel_t *accel, const pf_settings_t *settings,
+                    const pf_photon_plan_t *plan, pf_photon_batch_t *batches, pf_photon_maps_t *maps,
+                    pf_photon_stats_t *stats);
 
 /* A flag that, once non-zero (a signal handler sets it), stops a photon
  * pass under way: tracing stops within a block of photons per thread and the

@@ -27,6 +27,10 @@
  *               (RGB by row) to the end of the frame
  *   JOB_END     (empty)
  *   BYE         str reason
+ *   PHOTON_REQ  u64 scene_hash, scene_size, settings, u32 first, u32 count
+ *   PHOTONS     u32 batch, u64 total, first, rejected, indirect, u32 n, then n
+ *               photons of 32 bytes (f32 pos[3], f32 power[3], u32 dir,
+ *               u32 normal) to the end of the frame
  *
  * Owns nothing: decoded chunk data and result pixels point into the frame.
  * Reentrant; any thread may encode or decode. */
@@ -61,6 +65,7 @@ static const char *const s_type_names[] = {
     [PF_MSG_HEARTBEAT] = "HEARTBEAT", [PF_MSG_JOB] = "JOB",         [PF_MSG_BLOB_REQ] = "BLOB_REQ",
     [PF_MSG_BLOB_CHUNK] = "BLOB_CHUNK", [PF_MSG_READY] = "READY",   [PF_MSG_TILE] = "TILE",
     [PF_MSG_RESULT] = "RESULT",       [PF_MSG_JOB_END] = "JOB_END", [PF_MSG_BYE] = "BYE",
+    [PF_MSG_PHOTON_REQ] = "PHOTON_REQ", [PF_MSG_PHOTONS] = "PHOTONS",
 };
 
 const char *pf_msg_type_name(int type)
@@ -437,6 +442,25 @@ static int s_check(const pf_msg_t *m, char *why, size_t why_len)
         return 0;
     case PF_MSG_BYE:
         return s_bad_str(why, why_len, "reason", m->u.bye.reason, sizeof m->u.bye.reason);
+    case PF_MSG_PHOTON_REQ: {
+        const pf_msg_photon_req_t *q = &m->u.photon_req;
+        return pf_settings_check(&q->settings, why, why_len) != PF_OK ||
+               s_out_of_range(why, why_len, "count", q->count, 1, PF_PROTO_MAX_REQ_BATCHES) ||
+               s_out_of_range(why, why_len, "first", q->first, 0, PF_PROTO_MAX_BATCHES - q->count);
+    }
+    case PF_MSG_PHOTONS: {
+        const pf_msg_photons_t *p = &m->u.photons;
+        if (s_out_of_range(why, why_len, "batch", p->batch, 0, PF_PROTO_MAX_BATCHES - 1) ||
+            s_out_of_range(why, why_len, "n", p->n, p->total ? 1 : 0, PF_PROTO_MAX_PART_PHOTONS))
+            return 1;
+        if (p->total > PF_PROTO_MAX_BATCH_PHOTONS || p->first > p->total || p->n > p->total - p->first ||
+            p->indirect > p->total) {
+            s_whyf(why, why_len, "photons first %" PRIu64 " + n %" PRIu32 ", indirect %" PRIu64 " do not fit total %"
+                   PRIu64, p->first, p->n, p->indirect, p->total);
+            return 1;
+        }
+        return 0;
+    }
     }
     s_whyf(why, why_len, "unknown message type %d", (int)m->type);
     return 1;
@@ -461,6 +485,16 @@ int pf_msg_encode(const pf_msg_t *msg, pf_buf_t *out)
     }
     if (msg->type == PF_MSG_BLOB_CHUNK && msg->u.chunk.len > 0 && !msg->u.chunk.data)
         return PF_EINVAL;
+    const pf_msg_photons_t *ph = &msg->u.photons;
+    if (msg->type == PF_MSG_PHOTONS) {
+        if (ph->n > 0 && !ph->photons)
+            return PF_EINVAL;
+        for (uint32_t i = 0; i < ph->n; i++)
+            for (int c = 0; c < 3; c++)
+                if (!isfinite(ph->photons[i].pos[c]) || !isfinite(ph->photons[i].power[c]) ||
+                    !(ph->photons[i].power[c] >= 0.0f))
+                    return PF_EINVAL;
+    }
 
     int rc = 0;
     W(pf_wr_u32(out, PF_PROTO_MAGIC));
@@ -542,6 +576,30 @@ int pf_msg_encode(const pf_msg_t *msg, pf_buf_t *out)
     case PF_MSG_BYE:
         W(pf_wr_str(out, msg->u.bye.reason));
         break;
+    case PF_MSG_PHOTON_REQ:
+        W(pf_wr_u64(out, msg->u.photon_req.scene_hash));
+        W(pf_wr_u64(out, msg->u.photon_req.scene_size));
+        W(pf_wr_settings(out, &msg->u.photon_req.settings));
+        W(pf_wr_u32(out, msg->u.photon_req.first));
+        W(pf_wr_u32(out, msg->u.photon_req.count));
+        break;
+    case PF_MSG_PHOTONS:
+        W(pf_wr_u32(out, ph->batch));
+        W(pf_wr_u64(out, ph->total));
+        W(pf_wr_u64(out, ph->first));
+        W(pf_wr_u64(out, ph->rejected));
+        W(pf_wr_u64(out, ph->indirect));
+        W(pf_wr_u32(out, ph->n));
+        for (uint32_t i = 0; i < ph->n && rc == 0; i++) {
+            const pf_msg_photon_t *q = &ph->photons[i];
+            for (int c = 0; c < 3; c++)
+                W(pf_wr_f32(out, q->pos[c]));
+            for (int c = 0; c < 3; c++)
+                W(pf_wr_f32(out, q->power[c]));
+            W(pf_wr_u32(out, q->dir));
+            W(pf_wr_u32(out, q->normal));
+        }
+        break;
     }
     if (rc != 0)
         out->len = 0;
@@ -550,6 +608,39 @@ int pf_msg_encode(const pf_msg_t *msg, pf_buf_t *out)
 #undef W
 
 /* ---- decoding ---- */
+
+/* PHOTONS: the counts, then exactly n photons to the end of the frame,
+ * each position finite and each power finite and >= 0. */
+static void s_dec_photons(s_dec_t *d, pf_msg_photons_t *p)
+{
+    p->batch = s_u32(d, "batch");
+    p->total = s_u64(d, "total");
+    p->first = s_u64(d, "first");
+    p->rejected = s_u64(d, "rejected");
+    p->indirect = s_u64(d, "indirect");
+    p->n = s_u32(d, "n");
+    if (d->failed)
+        return;
+    if (p->n > PF_PROTO_MAX_PART_PHOTONS) {
+        s_fail(d, "n %" PRIu32 " is over %u photons a message", p->n, (unsigned)PF_PROTO_MAX_PART_PHOTONS);
+        return;
+    }
+    size_t want = (size_t)p->n * PF_PROTO_PHOTON_BYTES;
+    if (d->r.left != want) {
+        s_fail(d, "%zu bytes of photons for n %" PRIu32 " (%zu expected)", d->r.left, p->n, want);
+        return;
+    }
+    p->data = pf_rd_bytes(&d->r, want);
+    for (uint32_t i = 0; i < p->n; i++) {
+        pf_msg_photon_t q;
+        pf_msg_photon_get(p, i, &q);
+        for (int c = 0; c < 3; c++)
+            if (!isfinite(q.pos[c]) || !isfinite(q.power[c]) || !(q.power[c] >= 0.0f)) {
+                s_fail(d, "photon %" PRIu32 ": position or power not finite, or power < 0", i);
+                return;
+            }
+    }
+}
 
 static void s_dec_body(s_dec_t *d, pf_msg_t *m)
 {
@@ -665,6 +756,16 @@ static void s_dec_body(s_dec_t *d, pf_msg_t *m)
     case PF_MSG_BYE:
         s_str(d, "reason", m->u.bye.reason, sizeof m->u.bye.reason);
         break;
+    case PF_MSG_PHOTON_REQ:
+        m->u.photon_req.scene_hash = s_u64(d, "scene_hash");
+        m->u.photon_req.scene_size = s_u64(d, "scene_size");
+        s_dec_settings(d, &m->u.photon_req.settings);
+        m->u.photon_req.first = s_u32(d, "first");
+        m->u.photon_req.count = s_u32(d, "count");
+        break;
+    case PF_MSG_PHOTONS:
+        s_dec_photons(d, &m->u.photons);
+        break;
     }
 }
 
@@ -725,4 +826,21 @@ void pf_msg_result_pixels(const pf_msg_result_t *r, float *dst)
         uint32_t u = (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
         memcpy(&dst[i], &u, sizeof u);
     }
+}
+
+static uint32_t s_le32(const uint8_t *q)
+{
+    return (uint32_t)q[0] | (uint32_t)q[1] << 8 | (uint32_t)q[2] << 16 | (uint32_t)q[3] << 24;
+}
+
+void pf_msg_photon_get(const pf_msg_photons_t *p, uint32_t i, pf_msg_photon_t *out)
+{
+    const uint8_t *q = p->data + (size_t)i * PF_PROTO_PHOTON_BYTES;
+    uint32_t u[8];
+    for (int k = 0; k < 8; k++)
+        u[k] = s_le32(q + 4 * k);
+    memcpy(out->pos, u, sizeof out->pos);
+    memcpy(out->power, u + 3, sizeof out->power);
+    out->dir = u[6];
+    out->normal = u[7];
 }

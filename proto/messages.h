@@ -26,6 +26,10 @@
  *           ◀────────── TILE(job, tile, attempt, rect) ...
  *   worker  RESULT(job, tile, attempt, rect, floats) ...   (each RESULT frees one credit)
  *           ◀────────── JOB_END(job)         job finished or cancelled: drop its tiles
+ *   Photon pass spread over the workers (before the JOB of that pass):
+ *           ◀────────── PHOTON_REQ(job, scene blob, settings, batches first..+count)
+ *   worker  BLOB_REQ for the scene blob, if it does not hold it
+ *   worker  PHOTONS(job, batch, part) ...    each batch's stored photons, in parts
  *   both    HEARTBEAT about once a second (any message counts as alive)
  *   either  BYE                              leaving (worker) / shutting down (coordinator)
  */
@@ -39,12 +43,17 @@
 #include "scene/scene.h"
 
 #define PF_PROTO_MAGIC 0x4d524650u /* "PFRM" read as little-endian bytes 'P','F','R','M' */
-#define PF_PROTO_VERSION 4 /* 3: settings carry the progressive pass; 4: and the pixel filter */
+#define PF_PROTO_VERSION 5 /* 3: settings carry the progressive pass; 4: and the pixel filter; 5: PHOTON_REQ, PHOTONS */
 #define PF_PROTO_HEADER_SIZE 16
 #define PF_PROTO_MAX_STRING PF_WIRE_MAX_STRING
 #define PF_PROTO_CHUNK_SIZE (1u << 20)            /* blob chunk payload */
 #define PF_PROTO_MAX_TILE_PIXELS (256u * 256u)    /* a RESULT carries at most this many pixels */
 #define PF_PROTO_MAX_MESSAGE (PF_PROTO_CHUNK_SIZE + 4096u) /* ZMQ_MAXMSGSIZE on both sides */
+#define PF_PROTO_MAX_BATCHES (1u << 20)          /* photon batches a pass has at most */
+#define PF_PROTO_MAX_REQ_BATCHES 64u             /* batches one PHOTON_REQ asks for at most */
+#define PF_PROTO_PHOTON_BYTES 32u                /* one photon on the wire */
+#define PF_PROTO_MAX_PART_PHOTONS (PF_PROTO_CHUNK_SIZE / PF_PROTO_PHOTON_BYTES) /* photons a PHOTONS carries */
+#define PF_PROTO_MAX_BATCH_PHOTONS (UINT64_C(1) << 32) /* photons one batch may store, at most */
 
 typedef enum {
     PF_MSG_HELLO = 1,
@@ -59,7 +68,9 @@ typedef enum {
     PF_MSG_RESULT = 10,
     PF_MSG_JOB_END = 11,
     PF_MSG_BYE = 12,
-    PF_MSG_MAX_TYPE = 12
+    PF_MSG_PHOTON_REQ = 13,
+    PF_MSG_PHOTONS = 14,
+    PF_MSG_MAX_TYPE = 14
 } pf_msg_type;
 
 /* The build fingerprint a worker must share with the coordinator. */
@@ -137,6 +148,34 @@ typedef struct pf_msg_result {
     uint32_t render_us;      /* time the tile took, microseconds (sent before the pixels) */
 } pf_msg_result_t;
 
+/* Trace photon batches [first, first + count) of the pass the settings
+ * describe (seed, photon counts, depth), over the scene blob named. */
+typedef struct pf_msg_photon_req {
+    uint64_t scene_hash, scene_size;
+    pf_settings_t settings;
+    uint32_t first, count;   /* count 1..PF_PROTO_MAX_REQ_BATCHES; first + count <= PF_PROTO_MAX_BATCHES */
+} pf_msg_photon_req_t;
+
+/* One photon as it travels: the photon layer's record, field by field. */
+typedef struct pf_msg_photon {
+    float pos[3];
+    float power[3];          /* finite, >= 0 */
+    uint32_t dir, normal;
+} pf_msg_photon_t;
+
+/* Part of one batch's stored photons: photons [first, first + n) of the
+ * total the batch stored, with the batch's counters (the same in every part). */
+typedef struct pf_msg_photons {
+    uint32_t batch;          /* < PF_PROTO_MAX_BATCHES */
+    uint64_t total;          /* photons the batch stored; <= PF_PROTO_MAX_BATCH_PHOTONS */
+    uint64_t first;          /* first + n <= total; n >= 1 unless total is 0 */
+    uint64_t rejected;       /* photons dropped for bad power */
+    uint64_t indirect;       /* global photons stored after a non-specular bounce; <= total */
+    uint32_t n;              /* <= PF_PROTO_MAX_PART_PHOTONS */
+    const uint8_t *data;     /* decode: n photons inside the frame, checked (pf_msg_photon_get) */
+    const pf_msg_photon_t *photons; /* encode: the n photons to send */
+} pf_msg_photons_t;
+
 typedef struct pf_msg_bye {
     char reason[256];
 } pf_msg_bye_t;
@@ -158,6 +197,8 @@ typedef struct pf_msg {
         pf_msg_tile_t tile;
         pf_msg_result_t result;
         pf_msg_bye_t bye;
+        pf_msg_photon_req_t photon_req;
+        pf_msg_photons_t photons;
     } u;
 } pf_msg_t;
 
@@ -172,6 +213,9 @@ int pf_msg_decode(const uint8_t *frame, size_t len, pf_msg_t *msg, char *why, si
 
 /* Copies a decoded RESULT's pixels into dst (w*h*3 floats). */
 void pf_msg_result_pixels(const pf_msg_result_t *r, float *dst);
+
+/* Photon i (< p->n) of a decoded PHOTONS. */
+void pf_msg_photon_get(const pf_msg_photons_t *p, uint32_t i, pf_msg_photon_t *out);
 
 const char *pf_msg_type_name(int type);
 

@@ -25,6 +25,7 @@
 
 #include "accel/accel.h"
 #include "photon/mapfile.h"
+#include "photon/trace.h"
 #include "worker/worker_impl.h"
 
 /* ---- reference counting (main thread only) ---- */
@@ -49,12 +50,17 @@ void pf_w_work_free(s_work *it)
 {
     if (!it)
         return;
-    if (it->kind == S_WORK_BUILD) {
+    if (it->kind != S_WORK_TILE) {
         if (it->scene_blob)
             it->scene_blob->pins--;
         if (it->maps_blob)
             it->maps_blob->pins--;
         pf_w_built_release(it->built);
+    }
+    if (it->ph_out) {
+        for (uint32_t k = 0; k < it->ph_count; k++)
+            free(it->ph_out[k].p);
+        free(it->ph_out);
     }
     free(it->rgb);
     pf_w_job_release(it->job);
@@ -144,6 +150,8 @@ static void *s_compute_main(void *arg)
         if (!atomic_load(&it->job->cancelled)) {
             if (it->kind == S_WORK_BUILD)
                 s_compute_build(it);
+            else if (it->kind == S_WORK_PHOTONS)
+                pf_w_compute_photons(w, it);
             else
                 s_compute_tile(w, it);
         }
@@ -272,6 +280,8 @@ void pf_w_compute_stop(s_worker *w)
             lists[i] = next;
         }
     w->q.todo = w->q.done = NULL;
+    pf_frame_close(&w->ph_frame); /* the compute thread's; it is joined */
+    w->ph_frame_ok = 0;
 }
 
 void pf_w_queue_destroy(s_queue *q)

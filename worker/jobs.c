@@ -91,6 +91,9 @@ static void s_blob_remove(s_worker *w, size_t i)
 
 static int s_blob_needed(const s_worker *w, const s_blob *b)
 {
+    const s_job *pj = w->pjob;
+    if (pj && b->hash == pj->desc.scene_hash && b->size == pj->desc.scene_size)
+        return 1;
     const s_job *j = w->job;
     if (!j || j->state == S_JOB_FAILED)
         return 0;
@@ -101,7 +104,7 @@ static int s_blob_needed(const s_worker *w, const s_blob *b)
 /* Drops transfers no current job needs, then the least recently used
  * complete blobs beyond S_MAX_BLOBS (never one pinned by a build or needed
  * by the current job; the cache may run over while those are in use). */
-static void s_blobs_trim(s_worker *w)
+void pf_w_blobs_trim(s_worker *w)
 {
     for (size_t i = 0; i < w->nblobs;) {
         s_blob *b = w->blobs[i];
@@ -165,7 +168,11 @@ static void s_blob_request(s_worker *w, s_blob *b)
     pf_msg_t m;
     memset(&m, 0, sizeof m);
     m.type = PF_MSG_BLOB_REQ;
-    m.job = w->job ? w->job->id : 0;
+    /* The job that needs it: the render job, else the photon job. */
+    const s_job *j = w->job;
+    int for_job = j && ((b->hash == j->desc.scene_hash && b->size == j->desc.scene_size) ||
+                        (b->hash == j->desc.maps_hash && b->size == j->desc.maps_size));
+    m.job = for_job ? j->id : w->pjob ? w->pjob->id : j ? j->id : 0;
     m.u.blob_req.hash = b->hash;
     m.u.blob_req.offset = b->requested;
     m.u.blob_req.credit = (uint32_t)credit;
@@ -185,15 +192,16 @@ static void s_blob_restart(s_worker *w, s_blob *b)
 
 /* The cached or in-transfer blob (hash, size), starting its transfer when
  * it is not there. NULL when the size is absurd or memory is short. */
-static s_blob *s_blob_get(s_worker *w, uint64_t hash, uint64_t size, const char *what)
+s_blob *pf_w_blob_get(s_worker *w, uint64_t hash, uint64_t size, const char *what)
 {
+    uint64_t job = w->job ? w->job->id : w->pjob ? w->pjob->id : 0;
     s_blob *b = s_blob_find(w, hash, size);
     if (b) {
         b->used = ++w->tick;
         return b;
     }
     if (size == 0 || size > S_MAX_BLOB_SIZE) {
-        pf_w_log(w, PF_LOG_ERROR, "job %" PRIu64 ": the %s blob's size %" PRIu64 " is out of range", w->job->id, what,
+        pf_w_log(w, PF_LOG_ERROR, "job %" PRIu64 ": the %s blob's size %" PRIu64 " is out of range", job, what,
                  size);
         return NULL;
     }
@@ -204,7 +212,7 @@ static s_blob *s_blob_get(s_worker *w, uint64_t hash, uint64_t size, const char 
      * until the coordinator actually sends that much. */
     b = calloc(1, sizeof *b);
     if (!b) {
-        pf_w_log(w, PF_LOG_ERROR, "job %" PRIu64 ": out of memory for the %s blob", w->job->id, what);
+        pf_w_log(w, PF_LOG_ERROR, "job %" PRIu64 ": out of memory for the %s blob", job, what);
         return NULL;
     }
     b->hash = hash;
@@ -240,6 +248,7 @@ static void s_tile_unhold(s_job *j, uint32_t tile, uint32_t attempt)
  * rendered stops at the next row, and results still to come are discarded. */
 void pf_w_job_drop(s_worker *w, const char *why)
 {
+    pf_w_photons_drop(w, why);
     s_job *j = w->job;
     if (!j)
         return;
@@ -258,14 +267,14 @@ void pf_w_job_drop(s_worker *w, const char *why)
         drop = next;
     }
     pf_w_job_release(j);
-    s_blobs_trim(w);
+    pf_w_blobs_trim(w);
 }
 
 static void s_job_fail(s_worker *w, s_job *j, const char *why)
 {
     pf_w_log(w, PF_LOG_ERROR, "job %" PRIu64 ": %s; taking no tiles for it", j->id, why);
     j->state = S_JOB_FAILED;
-    s_blobs_trim(w);
+    pf_w_blobs_trim(w);
 }
 
 /* The scene and maps are built: render context, then READY. */
@@ -357,11 +366,11 @@ void pf_w_on_job(s_worker *w, const pf_msg_t *m)
         s_job_fail(w, j, "settings out of the renderer's range");
         return;
     }
-    if (!s_blob_get(w, d->scene_hash, d->scene_size, "scene") || !s_blob_get(w, d->maps_hash, d->maps_size, "maps")) {
+    if (!pf_w_blob_get(w, d->scene_hash, d->scene_size, "scene") || !pf_w_blob_get(w, d->maps_hash, d->maps_size, "maps")) {
         s_job_fail(w, j, "cannot fetch its blobs");
         return;
     }
-    s_blobs_trim(w);
+    pf_w_blobs_trim(w);
     s_job_advance(w);
 }
 
@@ -426,8 +435,9 @@ void pf_w_on_chunk(s_worker *w, const pf_msg_blob_chunk_t *c)
     b->complete = 1;
     b->used = ++w->tick;
     pf_w_log(w, PF_LOG_DEBUG, "blob %016" PRIx64 " complete (%" PRIu64 " bytes)", b->hash, b->size);
-    s_blobs_trim(w);
+    pf_w_blobs_trim(w);
     s_job_advance(w);
+    pf_w_photons_advance(w);
 }
 
 /* A TILE the coordinator may send: one of the current job's, beyond none of
@@ -504,7 +514,9 @@ void pf_w_drain_done(s_worker *w)
         list = it->next;
         s_job *j = it->job;
         int current = j == w->job && !atomic_load(&j->cancelled);
-        if (it->kind == S_WORK_BUILD) {
+        if (it->kind == S_WORK_PHOTONS) {
+            pf_w_photons_sent(w, it);
+        } else if (it->kind == S_WORK_BUILD) {
             s_build_forget(w, it);
             if (it->built) {
                 /* Cache the build even if its job is gone: the next job
@@ -550,10 +562,10 @@ void pf_w_drain_done(s_worker *w)
                          j->id);
             }
         }
-        int was_build = it->kind == S_WORK_BUILD;
+        int was_build = it->kind != S_WORK_TILE;
         pf_w_work_free(it);
         if (was_build)
-            s_blobs_trim(w); /* its blobs are unpinned now */
+            pf_w_blobs_trim(w); /* its blobs are unpinned now */
     }
 }
 

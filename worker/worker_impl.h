@@ -7,6 +7,11 @@
  *              TILE and RESULT handling (main thread);
  *   compute.c  the compute thread, its work queue and the reference-counted
  *              work items, jobs and built frames;
+ *   photons.c  the photon job: batches of the coordinator's photon pass
+ *              traced on request (PHOTON_REQ) and sent back (PHOTONS); its
+ *              handlers run in the main thread, its tracing in the compute
+ *              thread; jobs.c calls it when a blob completes and when a job
+ *              is dropped, it calls jobs.c for the scene blob;
  *   outbox.c   log lines and messages to the coordinator, the outbox.
  *
  * Nothing outside worker/ includes this header; the public interface is
@@ -75,7 +80,7 @@ typedef struct s_job {
     int refs;            /* the worker's current-job pointer and each work item; main thread only */
 } s_job;
 
-typedef enum { S_WORK_BUILD, S_WORK_TILE } s_work_kind;
+typedef enum { S_WORK_BUILD, S_WORK_TILE, S_WORK_PHOTONS } s_work_kind;
 
 typedef struct s_work {
     struct s_work *next;
@@ -91,6 +96,11 @@ typedef struct s_work {
     s_blob *scene_blob, *maps_blob; /* pinned while queued */
     s_built *built;                 /* the result, or NULL with error set */
     char error[1100];
+    /* S_WORK_PHOTONS (scene_blob pinned too): batches [ph_first, ph_first +
+     * ph_count) of the photon job, traced into ph_out (calloc'd, ph_count) */
+    uint32_t ph_first, ph_count;
+    struct pf_photon_batch *ph_out;
+    double ph_s; /* the trace's wall time */
 } s_work;
 
 /* The compute thread's in and out lists. */
@@ -144,6 +154,16 @@ typedef struct s_worker {
     s_built *built_cache;
     s_work *builds; /* BUILD items queued or running */
     s_job *job;
+    /* photons.c: the photon job (desc: the scene blob and the pass's
+     * settings; maps unused), the batch ranges waiting for its scene blob;
+     * the compute thread's own frame of that scene (accel and lights: built
+     * once per scene hash, touched only by the compute thread). */
+    s_job *pjob;
+    pf_msg_photon_req_t ph_wait[4];
+    int nph_wait;
+    pf_frame_t ph_frame;
+    uint64_t ph_frame_hash;
+    int ph_frame_ok;
 
     s_queue q;
     pthread_t compute;
@@ -170,6 +190,25 @@ void pf_w_blobs_resume(s_worker *w, double gap);
 void pf_w_blobs_check_stalls(s_worker *w, double now);
 /* Frees the built scene cache and every blob (at exit, the compute thread joined). */
 void pf_w_cache_free(s_worker *w);
+/* The cached or in-transfer blob (hash, size), its transfer started when it
+ * is not there; NULL when the size is absurd or memory is short. */
+s_blob *pf_w_blob_get(s_worker *w, uint64_t hash, uint64_t size, const char *what);
+/* Drops transfers no job needs and the least recently used blobs. */
+void pf_w_blobs_trim(s_worker *w);
+
+/* ---- photons.c: the photon job ---- */
+
+/* A PHOTON_REQ: its batches traced once the scene blob is here. */
+void pf_w_on_photon_req(s_worker *w, const pf_msg_t *m);
+/* A blob completed: batches waiting for it go to the compute thread. */
+void pf_w_photons_advance(s_worker *w);
+/* Cancels the photon job (if any): queued batches are dropped, a batch
+ * being traced is not sent. */
+void pf_w_photons_drop(s_worker *w, const char *why);
+/* A PHOTONS item came back from the compute thread: its batches are sent. */
+void pf_w_photons_sent(s_worker *w, s_work *it);
+/* Compute thread: traces a PHOTONS item's batches. */
+void pf_w_compute_photons(s_worker *w, s_work *it);
 
 /* ---- compute.c: the compute thread, its queue and the work items ---- */
 

@@ -34,6 +34,11 @@
 #     through a one-pass render's tiles, and between progressive passes; the
 #     images are the uninterrupted ones, bit for bit; a checkpoint of other
 #     settings is refused (exit 3).
+# 12. the photon pass spread over the workers (a tiny image, many photons):
+#     two cluster workers trace photon batches, the image is the in-process
+#     one's bit for bit and the log says the workers traced batches; then
+#     one of them is killed -9 while it traces, and the image is still the
+#     in-process one's.
 #
 # Every wait is bounded (poll loops with deadlines, `timeout`), every process
 # the script starts is recorded and killed (kill -9) on exit, and workers carry
@@ -175,6 +180,8 @@ BIG=(--size 192x192 --spp 25 --photons 50000 --caustic-photons 50000 --gather 8)
 # Four progressive passes of a few seconds in all.
 PROG=(--size 128x128 --spp 6 --photons 30000 --caustic-photons 30000 --gather 4 --passes 4)
 FARM=(--tile 16 --heartbeat-ms 200)
+# A photon pass of several seconds before a tiny image (glass: caustic batches too).
+PHOT=(--size 32x32 --spp 1 --photons 1500000 --caustic-photons 300000 --gather 4)
 
 # coordinator NAME SCENE PORT SETTINGS_VAR [extra options...]: starts a cluster
 # coordinator on tcp://127.0.0.1:PORT writing $T/NAME.pfm; pid in $LASTPID.
@@ -230,7 +237,7 @@ completed() {
 references() {
     echo "# references: in-process renders (--workers 0)"
     local r rname rscene rset
-    for r in spheres:$SPHERES:SMALL box:$BOX:SMALL big:$SPHERES:BIG prog:$SPHERES:PROG; do
+    for r in spheres:$SPHERES:SMALL box:$BOX:SMALL big:$SPHERES:BIG prog:$SPHERES:PROG phot:$SPHERES:PHOT; do
         IFS=: read -r rname rscene rset <<<"$r"
         local -n rs=$rset
         if ! timeout 120 "$PF" render "$rscene" -o "$T/ref_$rname.png" --hdr "$T/ref_$rname.pfm" "${rs[@]}" \
@@ -687,11 +694,55 @@ t11() {
     check "11: ... naming the file" has "$T/ck_bad.err" "ck_bad.ckpt"
 }
 
+# ---- 12. the photon pass on the workers ---------------------------------------------
+
+# photon_test NAME KILL: two one-thread workers join while the coordinator
+# traces the photon pass; with KILL=1 the second is killed -9 once it traces.
+photon_test() {
+    local n=$1 kill=$2 port coord wa wb
+    port=$(free_port)
+    coordinator "${n}_coord" "$SPHERES" "$port" PHOT
+    coord=$LASTPID
+    worker "${n}_a" "$port" --exit-on-bye
+    wa=$LASTPID
+    worker "${n}_b" "$port" --exit-on-bye
+    wb=$LASTPID
+    if [ "$kill" = 1 ]; then
+        if wait_log "$T/${n}_b.err" 'tracing photon batches' 30 && sleep 0.3 && kill -0 "$coord" 2>/dev/null &&
+            hasnt "$T/${n}_coord.err" 'photon pass: [0-9]+ global'; then
+            kill -9 "$wb"
+            wait "$wb" 2>/dev/null
+            ok "12: worker ${n}_b killed while tracing photon batches"
+        else
+            bad "12: the photon pass ended before a worker could be killed (make it longer)"
+        fi
+    fi
+    wait_exit "$coord" 120
+    if completed "12: the render with the photon pass on the workers completes (kill $kill)" "$T/${n}_coord.err"; then
+        check "12: the image is bit-identical to in-process (kill $kill)" same "$T/${n}_coord.pfm" "$T/ref_phot.pfm"
+        local remote
+        remote=$(grep -oE '[0-9]+ on the workers' "$T/${n}_coord.err" | tail -n 1 | grep -oE '^[0-9]+')
+        check "12: the log says the workers traced photon batches (${remote:-none})" gt "${remote:-0}" 0
+        if [ "$kill" = 1 ]; then
+            check "12: the log declares the killed worker dead" logged "$T/${n}_coord.err" "${n}_b.*(dead|lost|silent)"
+            check "12: ... and its photon batches went back" logged "$T/${n}_coord.err" "${n}_b.*photon batches"
+        fi
+        note "12: $(grep -E 'photon pass spread' "$T/${n}_coord.err" | sed 's/.*summary: //')"
+    fi
+    stop "$wa" "$wb"
+}
+
+t12() {
+    echo "# 12. the photon pass spread over the workers"
+    photon_test phot 0
+    photon_test photkill 1
+}
+
 # ---- run ----------------------------------------------------------------------------
 
 if references; then
     # PF_FARM_ONLY="2 5" runs only those tests (for debugging).
-    for n in ${PF_FARM_ONLY:-1 2 3 4 5 6 7 8 9 10 11}; do
+    for n in ${PF_FARM_ONLY:-1 2 3 4 5 6 7 8 9 10 11 12}; do
         "t$n"
     done
 fi

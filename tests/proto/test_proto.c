@@ -60,6 +60,8 @@ static uint32_t s_fbits(float f)
 static float s_pixels[3 * 2 * 3];
 static uint8_t s_chunk_data[100];
 
+static pf_msg_photon_t s_photons[3];
+
 static void s_sample(int type, pf_msg_t *m)
 {
     memset(m, 0, sizeof *m);
@@ -149,6 +151,21 @@ static void s_sample(int type, pf_msg_t *m)
         break;
     case PF_MSG_BYE:
         snprintf(m->u.bye.reason, sizeof m->u.bye.reason, "shutting down");
+        break;
+    case PF_MSG_PHOTON_REQ:
+        s_sample(PF_MSG_JOB, m); /* its settings */
+        m->type = PF_MSG_PHOTON_REQ;
+        m->u.photon_req.settings = m->u.job.settings;
+        m->u.photon_req.scene_hash = 0x0123456789abcdefULL;
+        m->u.photon_req.scene_size = 123456;
+        m->u.photon_req.first = 40;
+        m->u.photon_req.count = 3;
+        break;
+    case PF_MSG_PHOTONS:
+        for (int i = 0; i < 3; i++)
+            s_photons[i] = (pf_msg_photon_t){ { 1.0f + i, -2.0f, 1e-30f }, { 0.0f, 0.5f * i, 7.0f }, 0x7fff7fffu + i,
+                                              0xffffffffu - i };
+        m->u.photons = (pf_msg_photons_t){ 5, 900, 30, 2, 800, 3, NULL, s_photons };
         break;
     }
 }
@@ -250,6 +267,26 @@ static const char *s_diff(const pf_msg_t *a, const pf_msg_t *b)
         return NULL;
     case PF_MSG_BYE:
         return strcmp(a->u.bye.reason, b->u.bye.reason) ? "reason" : NULL;
+    case PF_MSG_PHOTON_REQ: {
+        const pf_msg_photon_req_t *x = &a->u.photon_req, *y = &b->u.photon_req;
+        if (x->scene_hash != y->scene_hash || x->scene_size != y->scene_size || x->first != y->first ||
+            x->count != y->count)
+            return "photon_req";
+        return pf_settings_hash(&x->settings) != pf_settings_hash(&y->settings) ? "settings" : NULL;
+    }
+    case PF_MSG_PHOTONS: {
+        const pf_msg_photons_t *x = &a->u.photons, *y = &b->u.photons;
+        if (x->batch != y->batch || x->total != y->total || x->first != y->first || x->rejected != y->rejected ||
+            x->indirect != y->indirect || x->n != y->n)
+            return "photons header";
+        for (uint32_t i = 0; i < x->n; i++) {
+            pf_msg_photon_t q;
+            pf_msg_photon_get(y, i, &q);
+            if (memcmp(&q, &x->photons[i], sizeof q))
+                return "photon";
+        }
+        return NULL;
+    }
     }
     return "unknown type";
 }
@@ -257,6 +294,16 @@ static const char *s_diff(const pf_msg_t *a, const pf_msg_t *b)
 /* Re-encodes a decoded message (RESULT pixels through pf_msg_result_pixels). */
 static int s_reencode(const pf_msg_t *m, pf_buf_t *out)
 {
+    if (m->type == PF_MSG_PHOTONS) {
+        pf_msg_t c = *m;
+        pf_msg_photon_t *q = malloc((m->u.photons.n + 1) * sizeof *q);
+        for (uint32_t i = 0; i < m->u.photons.n; i++)
+            pf_msg_photon_get(&m->u.photons, i, &q[i]);
+        c.u.photons.photons = q;
+        int rc = pf_msg_encode(&c, out);
+        free(q);
+        return rc;
+    }
     if (m->type != PF_MSG_RESULT)
         return pf_msg_encode(m, out);
     pf_msg_t c = *m;
@@ -340,7 +387,7 @@ static void test_wire(void)
     pf_buf_free(&b); /* twice is harmless */
 
     CHECK(strcmp(pf_msg_type_name(PF_MSG_HELLO), "HELLO") == 0 && strcmp(pf_msg_type_name(PF_MSG_BYE), "BYE") == 0 &&
-              strcmp(pf_msg_type_name(0), "UNKNOWN") == 0 && strcmp(pf_msg_type_name(13), "UNKNOWN") == 0 &&
+              strcmp(pf_msg_type_name(0), "UNKNOWN") == 0 && strcmp(pf_msg_type_name(PF_MSG_MAX_TYPE + 1), "UNKNOWN") == 0 &&
               strcmp(pf_msg_type_name(-1), "UNKNOWN") == 0,
           "type names");
 }
@@ -549,7 +596,9 @@ static void s_corrupt_headers(void)
         c[b.len] = 0;
         /* RESULT's pixels are the rest of the frame: one more byte is a pixel
          * count that does not fit the tile. */
-        s_expect(c, b.len + 1, PF_EPARSE, t == PF_MSG_RESULT ? "bytes of pixels" : "trailing", "trailing byte");
+        s_expect(c, b.len + 1, PF_EPARSE,
+                 t == PF_MSG_RESULT ? "bytes of pixels" : t == PF_MSG_PHOTONS ? "bytes of photons" : "trailing",
+                 "trailing byte");
         free(c);
         pf_buf_free(&b);
     }

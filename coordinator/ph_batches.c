@@ -1,0 +1,362 @@
+/* ph_batches.c: the table of a photon pass's batches, shared by the photon
+ * thread (which traces) and the event loop (which leases to workers and
+ * takes their results in); see ph_batches.h.
+ *
+ * A batch is FREE, LEASED (to a worker uid, maybe also being traced here:
+ * `local`) or DONE. A worker's result arrives in parts, in order, on one
+ * connection; the parts must agree with each other and with the plan: a
+ * batch of a map with E emitted photons in the batch stores at most
+ * E * photon_max_depth global photons (one a bounce) or E caustic ones (one
+ * a path), and rejects at most E. Whatever disagrees is refused (the caller
+ * strikes the sender) and the batch is free again.
+ *
+ * Owns the table and the batches' photons until pf_phq_merge takes them.
+ * Threads: all under q->mu; pf_phq_run traces with it unlocked. */
+#include "coordinator/ph_batches.h"
+
+#include <inttypes.h>
+#include <pthread.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "base/log.h"
+
+enum { S_FREE = 0, S_LEASED, S_DONE };
+
+#define S_LOCAL_RUN 4 /* free batches the photon thread takes at once */
+
+typedef struct s_batch {
+    int state;
+    int local;              /* the photon thread is tracing it */
+    volatile int abort;     /* set when a worker's result wins while it is traced here */
+    uint32_t uid;           /* the lessee (S_LEASED), 0: none */
+    double leased_at;
+    pf_photon_batch_t res;  /* S_DONE: the result */
+    /* a worker's result coming in parts */
+    pf_photon_t *recv;
+    uint64_t total, got, cap, rejected, indirect;
+    uint32_t recv_uid;
+} s_batch;
+
+struct pf_phq {
+    pthread_mutex_t mu;
+    const pf_photon_tracer_t *tracer;
+    pf_photon_plan_t plan;
+    uint32_t nb, ndone;
+    s_batch *b;
+    uint64_t max_global, max_caustic; /* stored photons a batch may hold */
+    pf_phq_stats_t st;
+};
+
+/* Photons emitted in batch i. */
+static uint64_t s_emitted(const pf_phq_t *q, uint32_t i)
+{
+    int caustic = i >= q->plan.global_batches;
+    uint64_t emitted = caustic ? q->plan.caustic_emitted : q->plan.global_emitted;
+    uint64_t per = (uint64_t)PF_PHOTON_BATCH_BLOCKS * PF_PHOTON_BLOCK;
+    uint64_t lo = (uint64_t)(caustic ? i - q->plan.global_batches : i) * per;
+    return emitted - lo < per ? emitted - lo : per;
+}
+
+pf_phq_t *pf_phq_new(const pf_photon_tracer_t *tracer, int max_depth)
+{
+    pf_phq_t *q = calloc(1, sizeof *q);
+    if (!q)
+        return NULL;
+    q->tracer = tracer;
+    q->plan = *pf_photon_tracer_plan(tracer);
+    q->nb = q->plan.global_batches + q->plan.caustic_batches;
+    q->b = calloc(q->nb ? q->nb : 1, sizeof *q->b);
+    if (!q->b || pthread_mutex_init(&q->mu, NULL) != 0) {
+        free(q->b);
+        free(q);
+        return NULL;
+    }
+    uint64_t per = (uint64_t)PF_PHOTON_BATCH_BLOCKS * PF_PHOTON_BLOCK;
+    q->max_global = per * (uint64_t)(max_depth > 0 ? max_depth : 1);
+    q->max_caustic = per;
+    q->st.batches = q->nb;
+    q->st.emitted = q->plan.global_emitted + q->plan.caustic_emitted;
+    return q;
+}
+
+static void s_drop_recv(s_batch *b)
+{
+    free(b->recv);
+    b->recv = NULL;
+    b->total = b->got = b->cap = b->rejected = b->indirect = 0;
+    b->recv_uid = 0;
+}
+
+void pf_phq_free(pf_phq_t **q_p)
+{
+    pf_phq_t *q = *q_p;
+    if (!q)
+        return;
+    for (uint32_t i = 0; i < q->nb; i++) {
+        free(q->b[i].res.p);
+        s_drop_recv(&q->b[i]);
+    }
+    free(q->b);
+    pthread_mutex_destroy(&q->mu);
+    free(q);
+    *q_p = NULL;
+}
+
+/* The batches the photon thread traces next: up to S_LOCAL_RUN consecutive
+ * free ones (the threads share their blocks), else the oldest leased one it
+ * is not tracing (*n = 1); UINT32_MAX: none left. */
+static uint32_t s_pick(pf_phq_t *q, uint32_t *n)
+{
+    uint32_t oldest = UINT32_MAX;
+    *n = 1;
+    for (uint32_t i = 0; i < q->nb; i++) {
+        s_batch *b = &q->b[i];
+        if (b->state == S_FREE) {
+            while (*n < S_LOCAL_RUN && i + *n < q->nb && q->b[i + *n].state == S_FREE)
+                (*n)++;
+            return i;
+        }
+        if (b->state == S_LEASED && !b->local && (oldest == UINT32_MAX || b->leased_at < q->b[oldest].leased_at))
+            oldest = i;
+    }
+    return oldest;
+}
+
+int pf_phq_run(pf_phq_t *q, int threads)
+{
+    pf_photon_batch_t res[S_LOCAL_RUN];
+    for (;;) {
+        uint32_t n;
+        pthread_mutex_lock(&q->mu);
+        uint32_t i = s_pick(q, &n);
+        if (i == UINT32_MAX) {
+            pthread_mutex_unlock(&q->mu);
+            return PF_OK;
+        }
+        s_batch *b = &q->b[i];
+        if (b->state == S_LEASED)
+            q->st.stolen++; /* a worker's: whoever finishes first, the other's result is dropped */
+        for (uint32_t k = 0; k < n; k++) {
+            if (b[k].state == S_FREE)
+                b[k].state = S_LEASED; /* uid 0: the coordinator's */
+            b[k].local = 1;
+            b[k].abort = 0;
+        }
+        pthread_mutex_unlock(&q->mu);
+
+        /* Only a stolen batch (n == 1) can be won by a worker meanwhile. */
+        int rc = pf_photon_trace_batches(q->tracer, i, n, threads, &b->abort, res);
+
+        pthread_mutex_lock(&q->mu);
+        int won = b->abort;
+        for (uint32_t k = 0; k < n; k++) {
+            b[k].local = 0;
+            if (rc == PF_OK && b[k].state != S_DONE) {
+                b[k].state = S_DONE;
+                b[k].res = res[k];
+                b[k].uid = 0;
+                s_drop_recv(&b[k]);
+                q->ndone++;
+                q->st.local++;
+            } else {
+                free(res[k].p);
+                if (rc != PF_OK && b[k].state == S_LEASED && b[k].uid == 0)
+                    b[k].state = S_FREE;
+            }
+        }
+        pthread_mutex_unlock(&q->mu);
+        if (rc != PF_OK && !(rc == PF_EINTERRUPTED && won))
+            return rc; /* out of memory, or the process is stopping */
+    }
+}
+
+uint32_t pf_phq_lease(pf_phq_t *q, uint32_t uid, uint32_t count, double now, uint32_t *first)
+{
+    pthread_mutex_lock(&q->mu);
+    uint32_t n = 0, i = 0;
+    while (i < q->nb && q->b[i].state != S_FREE)
+        i++;
+    *first = i;
+    for (; i < q->nb && n < count && q->b[i].state == S_FREE; i++, n++) {
+        q->b[i].state = S_LEASED;
+        q->b[i].uid = uid;
+        q->b[i].leased_at = now;
+    }
+    pthread_mutex_unlock(&q->mu);
+    return n;
+}
+
+uint32_t pf_phq_held(pf_phq_t *q, uint32_t uid)
+{
+    pthread_mutex_lock(&q->mu);
+    uint32_t n = 0;
+    for (uint32_t i = 0; i < q->nb; i++)
+        n += q->b[i].state == S_LEASED && q->b[i].uid == uid;
+    pthread_mutex_unlock(&q->mu);
+    return n;
+}
+
+/* Batch i leaves its lessee: free again (or still the photon thread's). */
+static void s_unlease(s_batch *b)
+{
+    b->uid = 0;
+    s_drop_recv(b);
+    if (!b->local)
+        b->state = S_FREE;
+}
+
+uint32_t pf_phq_release(pf_phq_t *q, uint32_t uid)
+{
+    pthread_mutex_lock(&q->mu);
+    uint32_t n = 0;
+    for (uint32_t i = 0; i < q->nb; i++)
+        if (q->b[i].state == S_LEASED && q->b[i].uid == uid) {
+            s_unlease(&q->b[i]);
+            n++;
+        }
+    pthread_mutex_unlock(&q->mu);
+    return n;
+}
+
+uint32_t pf_phq_expire(pf_phq_t *q, double now, double timeout_s)
+{
+    pthread_mutex_lock(&q->mu);
+    uint32_t n = 0;
+    for (uint32_t i = 0; i < q->nb; i++) {
+        s_batch *b = &q->b[i];
+        if (b->state == S_LEASED && b->uid && now - b->leased_at > timeout_s) {
+            s_unlease(b);
+            n++;
+        }
+    }
+    q->st.expired += n;
+    pthread_mutex_unlock(&q->mu);
+    return n;
+}
+
+/* A part of batch b from uid, checked against the plan and the parts
+ * before it; 0 or -1 with why. */
+static int s_check_part(const pf_phq_t *q, const s_batch *b, uint32_t i, uint32_t uid, const pf_msg_photons_t *p,
+                        char *why, size_t why_len)
+{
+    uint64_t emitted = s_emitted(q, i);
+    uint64_t most = i < q->plan.global_batches ? q->max_global : q->max_caustic;
+    if (p->first == 0) {
+        if (p->total > most || p->rejected > emitted) {
+            snprintf(why, why_len, "PHOTONS: batch %" PRIu32 " of %" PRIu64 " photons emitted cannot store %" PRIu64
+                     " (at most %" PRIu64 ") or reject %" PRIu64, i, emitted, p->total, most, p->rejected);
+            return -1;
+        }
+        if (i >= q->plan.global_batches && p->indirect) {
+            snprintf(why, why_len, "PHOTONS: caustic batch %" PRIu32 " with indirect photons", i);
+            return -1;
+        }
+        return 0;
+    }
+    if (b->recv_uid != uid || p->first != b->got || p->total != b->total || p->rejected != b->rejected ||
+        p->indirect != b->indirect) {
+        snprintf(why, why_len, "PHOTONS: batch %" PRIu32 " part at %" PRIu64 " of %" PRIu64 " does not follow the parts "
+                 "before it (%" PRIu64 " of %" PRIu64 " received)", i, p->first, p->total, b->got, b->total);
+        return -1;
+    }
+    return 0;
+}
+
+int pf_phq_on_photons(pf_phq_t *q, uint32_t uid, const pf_msg_photons_t *p, char *why, size_t why_len)
+{
+    pthread_mutex_lock(&q->mu);
+    int rc = PF_PHQ_PART;
+    uint32_t i = p->batch;
+    s_batch *b = i < q->nb ? &q->b[i] : NULL;
+    if (!b) {
+        snprintf(why, why_len, "PHOTONS: batch %" PRIu32 " is not in this pass (%" PRIu32 " batches)", i, q->nb);
+        rc = PF_PHQ_BAD;
+    } else if (b->state != S_LEASED || b->uid != uid) {
+        q->st.stale++;
+        rc = PF_PHQ_STALE;
+    } else if (s_check_part(q, b, i, uid, p, why, why_len) != 0) {
+        s_unlease(b);
+        rc = PF_PHQ_BAD;
+    } else {
+        if (p->first == 0) {
+            s_drop_recv(b);
+            b->total = p->total;
+            b->rejected = p->rejected;
+            b->indirect = p->indirect;
+            b->recv_uid = uid;
+        }
+        /* The buffer grows as parts arrive (doubling, never past the total
+         * announced), so a total that no photons follow costs nothing. */
+        if (b->got + p->n > b->cap || !b->recv) {
+            uint64_t cap = b->cap ? b->cap : 1;
+            while (cap < b->got + p->n)
+                cap *= 2;
+            cap = cap < b->total ? cap : (b->total ? b->total : 1);
+            pf_photon_t *grown = cap <= SIZE_MAX / sizeof *grown ? realloc(b->recv, (size_t)cap * sizeof *grown) : NULL;
+            if (grown) {
+                b->recv = grown;
+                b->cap = cap;
+            } else {
+                free(b->recv);
+                b->recv = NULL;
+            }
+        }
+        if (!b->recv) {
+            snprintf(why, why_len, "PHOTONS: out of memory for %" PRIu64 " photons", p->total);
+            s_unlease(b);
+            rc = PF_PHQ_STALE;
+        } else {
+            for (uint32_t k = 0; k < p->n; k++) {
+                pf_msg_photon_t m;
+                pf_msg_photon_get(p, k, &m);
+                pf_photon_t *d = &b->recv[b->got + k];
+                memcpy(d->pos, m.pos, sizeof d->pos);
+                memcpy(d->power, m.power, sizeof d->power);
+                d->dir = m.dir;
+                d->normal = m.normal;
+            }
+            b->got += p->n;
+            if (b->got == b->total) {
+                b->res = (pf_photon_batch_t){ b->recv, b->total, b->rejected, b->indirect };
+                b->recv = NULL;
+                b->state = S_DONE;
+                b->abort = 1; /* a local trace of it stops */
+                q->ndone++;
+                q->st.remote++;
+                rc = PF_PHQ_DONE;
+            }
+        }
+    }
+    pthread_mutex_unlock(&q->mu);
+    return rc;
+}
+
+int pf_phq_merge(pf_phq_t *q, const pf_scene_t *scene, const pf_accel_t *accel, const pf_settings_t *settings,
+                 pf_photon_maps_t *maps, pf_photon_stats_t *stats)
+{
+    pthread_mutex_lock(&q->mu);
+    int complete = q->ndone == q->nb;
+    pf_photon_batch_t *res = complete ? malloc((q->nb ? q->nb : 1) * sizeof *res) : NULL;
+    if (res)
+        for (uint32_t i = 0; i < q->nb; i++) {
+            res[i] = q->b[i].res;
+            memset(&q->b[i].res, 0, sizeof q->b[i].res);
+        }
+    pthread_mutex_unlock(&q->mu);
+    if (!res)
+        return complete ? PF_ENOMEM : PF_EINVAL;
+    int rc = pf_photon_merge(scene, accel, settings, &q->plan, res, maps, stats);
+    for (uint32_t i = 0; i < q->nb; i++)
+        free(res[i].p);
+    free(res);
+    return rc;
+}
+
+void pf_phq_stats(pf_phq_t *q, pf_phq_stats_t *out)
+{
+    pthread_mutex_lock(&q->mu);
+    *out = q->st;
+    pthread_mutex_unlock(&q->mu);
+}
