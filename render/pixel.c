@@ -59,6 +59,39 @@ static double s_box_tent_cdf(double x, double b, double t)
     return (s_tent_cdf_integral(x + 0.5 * b, t) - s_tent_cdf_integral(x - 0.5 * b, t)) / b;
 }
 
+/* The box-tent convolution's inverse CDF at u = i / S_TABLE, i = 0 ..
+ * S_TABLE, made once per thread for the filter in use; a sample then costs
+ * a lookup and a linear interpolation, which keeps the order of u (the
+ * strata), where a bisection per sample made cornell-box's render 3.7
+ * times slower. Off by at most the outermost steps' width (0.07 pixel for
+ * box 1, tent 0.5) in the outer 1/4096 of each tail. A pure function of
+ * (b, t), so every thread's table is the same. */
+enum { S_TABLE = 4096 };
+typedef struct s_table {
+    float b, t;
+    double x[S_TABLE + 1];
+} s_table;
+static _Thread_local s_table s_tab = { -1.0f, -1.0f, { 0 } };
+
+static void s_table_make(float b, float t)
+{
+    s_tab.x[0] = -0.5 * b - t;
+    s_tab.x[S_TABLE] = 0.5 * b + t;
+    for (int i = 1; i < S_TABLE; i++) {
+        double u = (double)i / S_TABLE, lo = s_tab.x[i - 1], hi = s_tab.x[S_TABLE];
+        for (int k = 0; k < 60; k++) { /* bisection to double precision */
+            double mid = 0.5 * (lo + hi);
+            if (s_box_tent_cdf(mid, b, t) < u)
+                lo = mid;
+            else
+                hi = mid;
+        }
+        s_tab.x[i] = 0.5 * (lo + hi);
+    }
+    s_tab.b = b;
+    s_tab.t = t;
+}
+
 /* The filter's offset from the pixel's centre for u in [0, 1): its
  * marginal's inverse CDF, so stratified u stay stratified. */
 static float s_filter_inverse(float u, float b, float t)
@@ -67,15 +100,12 @@ static float s_filter_inverse(float u, float b, float t)
         return b * (u - 0.5f);
     if (b == 0.0f)
         return t * s_tent(u);
-    double lo = -0.5 * b - t, hi = 0.5 * b + t;
-    for (int i = 0; i < 40; i++) { /* bisection: 2^-40 of the support */
-        double mid = 0.5 * (lo + hi);
-        if (s_box_tent_cdf(mid, b, t) < u)
-            lo = mid;
-        else
-            hi = mid;
-    }
-    return (float)(0.5 * (lo + hi));
+    if (s_tab.b != b || s_tab.t != t)
+        s_table_make(b, t);
+    double f = (double)u * S_TABLE;
+    int i = (int)f;
+    i = i < 0 ? 0 : i >= S_TABLE ? S_TABLE - 1 : i;
+    return (float)(s_tab.x[i] + (f - i) * (s_tab.x[i + 1] - s_tab.x[i]));
 }
 
 void pf_pixel_filter(const pf_settings_t *s, float *jx, float *jy)
