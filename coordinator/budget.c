@@ -269,11 +269,16 @@ void pf_budget_plan_pass_spp(pf_budget_t *b, const pf_frame_t *frame, unsigned t
 
 void pf_budget_pass_done(pf_budget_t *b, int spp, double render_s)
 {
-    double per = spp > 0 ? (render_s - b->pass_fixed_s) / (double)spp : 0.0;
-    if (per > 0.0)
-        b->pass_spp_s = per;
-    else if (spp > 0 && render_s > 0.0)
-        b->pass_spp_s = render_s / (double)spp;
+    if (!(spp > 0 && render_s > 0.0))
+        return;
+    /* The fixed part comes from the probe, and a pass of a few samples is
+     * mostly fixed cost (records, texels, the edge pixels' samples): what
+     * is left over can be a small difference of two noisy times, and a
+     * cost per sample taken from it planned a cornell-box pass of 219 spp
+     * after one of 2 (27.5 s of a 30 s limit in one pass). At least half
+     * of a pass's time is taken to grow with its samples. */
+    double per = (render_s - b->pass_fixed_s) / (double)spp, floor_per = 0.5 * render_s / (double)spp;
+    b->pass_spp_s = per > floor_per ? per : floor_per;
 }
 
 void pf_budget_log(const pf_budget_t *b, const pf_settings_t *s)

@@ -2,7 +2,8 @@
  * accum.c). The image of N passes is the spp-weighted mean of the N
  * one-pass renders with each pass's settings (its index and seed), bit for
  * bit; a pass cut short counts where it reached and nowhere else; the
- * error estimate sees the spread between passes. Runs from the source
+ * error estimate sees the spread between passes; the planner's cost of a
+ * sample from a short pass stays sane (budget.c). Runs from the source
  * directory (the scenes). */
 #include <math.h>
 #include <stdio.h>
@@ -11,6 +12,7 @@
 
 #include "base/log.h"
 #include "coordinator/accum.h"
+#include "coordinator/budget.h"
 #include "coordinator/job.h"
 #include "load/load.h"
 
@@ -96,10 +98,29 @@ static void s_accum(void)
     pf_accum_free(&a);
 }
 
+/* The cost of a sample measured from a pass: the time beyond the probe's
+ * fixed part per sample, but never less than half the pass's time per
+ * sample (a pass of 2 spp that took 0.45 s beside a fixed part of 0.42 s
+ * would otherwise say 0.015 s a sample and plan the next pass 7 times too
+ * long). */
+static void s_pass_cost(void)
+{
+    pf_budget_t b;
+    memset(&b, 0, sizeof b);
+    b.pass_fixed_s = 0.42;
+    pf_budget_pass_done(&b, 2, 0.45);
+    CHECK(fabs(b.pass_spp_s - 0.1125) < 1e-12, "short pass: %g s a sample (0.1125)", b.pass_spp_s);
+    pf_budget_pass_done(&b, 20, 4.42);
+    CHECK(fabs(b.pass_spp_s - 0.2) < 1e-12, "long pass: %g s a sample (0.2)", b.pass_spp_s);
+    pf_budget_pass_done(&b, 0, 1.0);
+    CHECK(fabs(b.pass_spp_s - 0.2) < 1e-12, "no samples: unchanged (%g)", b.pass_spp_s);
+}
+
 int main(void)
 {
     pf_log_set_level(PF_LOG_WARN);
     s_accum();
+    s_pass_cost();
     pf_error_t err = { { 0 } };
     pf_scene_t *scene = pf_scene_load("scenes/cornell-spheres/scene.json", &err);
     CHECK(scene != NULL, "load: %s", err.msg);
