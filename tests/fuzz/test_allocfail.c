@@ -469,6 +469,8 @@ int main(void)
     /* One message of every type. */
     float rgb[12] = { 0.5f, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11 };
     static const uint8_t chunk[5] = { 1, 2, 3, 4, 5 };
+    static const pf_msg_photon_t photons[2] = { { { 1, 2, 3 }, { 0.5f, 0.5f, 0.5f }, 0x7fff7fffu, 0x7fff7fffu },
+                                                { { -1, 0, 4 }, { 1, 0, 2 }, 0x12345678u, 0x7fff7fffu } };
     for (int t = 1; t <= PF_MSG_MAX_TYPE; t++) {
         pf_msg_t m;
         memset(&m, 0, sizeof m);
@@ -495,6 +497,13 @@ int main(void)
         case PF_MSG_TILE: m.u.tile = (pf_msg_tile_t){ .w = 4, .h = 4 }; break;
         case PF_MSG_RESULT: m.u.result = (pf_msg_result_t){ .w = 2, .h = 2, .rgb = rgb }; break;
         case PF_MSG_BYE: snprintf(m.u.bye.reason, sizeof m.u.bye.reason, "done"); break;
+        case PF_MSG_PHOTON_REQ:
+            m.u.photon_req = (pf_msg_photon_req_t){ .scene_hash = 7, .scene_size = 100, .first = 2, .count = 3 };
+            m.u.photon_req.settings = pf_settings_default();
+            break;
+        case PF_MSG_PHOTONS:
+            m.u.photons = (pf_msg_photons_t){ .batch = 1, .total = 2, .first = 0, .n = 2, .photons = photons };
+            break;
         default: break;
         }
         pf_buf_t b = { 0 };
