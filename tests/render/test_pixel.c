@@ -148,8 +148,7 @@ static void s_edges(const char *spec)
     st.photons = st.caustic_photons = 1000;
     st.threads = 0;
     CHECK(pf_pixel_filter_parse(spec, &st.filter_box, &st.filter_tent) == PF_OK, "filter %s", spec);
-    pf_image_t image, *img = &image;
-    PF_CHECK(pf_image_alloc(img, SIZE, SIZE) == PF_OK);
+    pf_image_t image = { 0, 0, NULL }, *img = &image; /* allocated by the render */
     pf_job_summary_t sum;
     int rc = pf_job_render_local(scene, &st, PF_TERM_EMITTED, 0, img, &sum, &err);
     CHECK(rc == PF_OK, "render: %s", err.msg);
