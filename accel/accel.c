@@ -331,6 +331,34 @@ static double s_tri_dist2(const double p[3], const double a[3], const double b[3
     return d2sum;
 }
 
+/* Triangle prim of mesh geom when it comes within sqrt(reach2) of c and has
+ * an area: 1 with its corners v and its unit normal nt (in doubles, for
+ * the plane tests of the point queries below); else 0. */
+static int s_near_triangle(const pf_scene_t *scene, unsigned geom, unsigned prim, const double c[3], double reach2,
+                           double v[3][3], double nt[3])
+{
+    const pf_mesh_t *mesh = &scene->meshes[geom];
+    const uint32_t *idx = &mesh->idx[3 * (size_t)prim];
+    for (int k = 0; k < 3; k++) {
+        pf_vec3 p = mesh->pos[idx[k]];
+        v[k][0] = p.x, v[k][1] = p.y, v[k][2] = p.z;
+    }
+    if (s_tri_dist2(c, v[0], v[1], v[2]) > reach2)
+        return 0; /* its bounds meet the sphere, the triangle does not */
+    double e1[3], e2[3];
+    for (int i = 0; i < 3; i++)
+        e1[i] = v[1][i] - v[0][i], e2[i] = v[2][i] - v[0][i];
+    nt[0] = e1[1] * e2[2] - e1[2] * e2[1];
+    nt[1] = e1[2] * e2[0] - e1[0] * e2[2];
+    nt[2] = e1[0] * e2[1] - e1[1] * e2[0];
+    double len = sqrt(s_dot3(nt, nt));
+    if (!(len > 0.0))
+        return 0; /* no area: no ray hits it */
+    for (int i = 0; i < 3; i++)
+        nt[i] /= len;
+    return 1;
+}
+
 /* Called by Embree for every primitive whose bounds meet the query sphere:
  * the triangles of rtc, the spheres of sphere_bounds. */
 static bool s_plane_query_prim(struct RTCPointQueryFunctionArguments *args)
@@ -339,26 +367,11 @@ static bool s_plane_query_prim(struct RTCPointQueryFunctionArguments *args)
     const pf_scene_t *scene = pq->accel->scene;
     int ok = 0;
     if (args->geomID < scene->nmeshes) {
-        const pf_mesh_t *mesh = &scene->meshes[args->geomID];
-        const uint32_t *idx = &mesh->idx[3 * (size_t)args->primID];
-        double v[3][3];
-        for (int k = 0; k < 3; k++) {
-            pf_vec3 p = mesh->pos[idx[k]];
-            v[k][0] = p.x, v[k][1] = p.y, v[k][2] = p.z;
-        }
-        if (s_tri_dist2(pq->c, v[0], v[1], v[2]) > pq->reach2)
-            return false; /* its bounds meet the sphere, the triangle does not */
-        double e1[3], e2[3], nt[3], cv[3];
+        double v[3][3], nt[3], cv[3];
+        if (!s_near_triangle(scene, args->geomID, args->primID, pq->c, pq->reach2, v, nt))
+            return false;
         for (int i = 0; i < 3; i++)
-            e1[i] = v[1][i] - v[0][i], e2[i] = v[2][i] - v[0][i], cv[i] = pq->c[i] - v[0][i];
-        nt[0] = e1[1] * e2[2] - e1[2] * e2[1];
-        nt[1] = e1[2] * e2[0] - e1[0] * e2[2];
-        nt[2] = e1[0] * e2[1] - e1[1] * e2[0];
-        double len = sqrt(s_dot3(nt, nt));
-        if (!(len > 0.0))
-            return false; /* no area: no ray hits it */
-        for (int i = 0; i < 3; i++)
-            nt[i] /= len;
+            cv[i] = pq->c[i] - v[0][i];
         /* |nt x n| = sin of the angle between the planes */
         double cx = nt[1] * pq->n[2] - nt[2] * pq->n[1], cy = nt[2] * pq->n[0] - nt[0] * pq->n[2],
                cz = nt[0] * pq->n[1] - nt[1] * pq->n[0];
@@ -415,24 +428,9 @@ static bool s_planes_query_prim(struct RTCPointQueryFunctionArguments *args)
     const pf_scene_t *scene = pq->accel->scene;
     if (args->geomID >= scene->nmeshes)
         return false; /* the spheres are asked apart */
-    const pf_mesh_t *mesh = &scene->meshes[args->geomID];
-    const uint32_t *idx = &mesh->idx[3 * (size_t)args->primID];
-    double v[3][3];
-    for (int k = 0; k < 3; k++) {
-        pf_vec3 p = mesh->pos[idx[k]];
-        v[k][0] = p.x, v[k][1] = p.y, v[k][2] = p.z;
-    }
-    if (s_tri_dist2(pq->c, v[0], v[1], v[2]) > pq->reach2)
+    double v[3][3], nt[3];
+    if (!s_near_triangle(scene, args->geomID, args->primID, pq->c, pq->reach2, v, nt))
         return false;
-    double e1[3], e2[3], nt[3];
-    for (int i = 0; i < 3; i++)
-        e1[i] = v[1][i] - v[0][i], e2[i] = v[2][i] - v[0][i];
-    nt[0] = e1[1] * e2[2] - e1[2] * e2[1];
-    nt[1] = e1[2] * e2[0] - e1[0] * e2[2];
-    nt[2] = e1[0] * e2[1] - e1[1] * e2[0];
-    double len = sqrt(s_dot3(nt, nt));
-    if (!(len > 0.0))
-        return false; /* no area: no ray hits it */
     if (pq->n >= pq->max) {
         pq->n = pq->max + 1;
         args->query->radius = 0.0f; /* the answer is known: stop */
@@ -440,7 +438,7 @@ static bool s_planes_query_prim(struct RTCPointQueryFunctionArguments *args)
     }
     pf_plane_t *pl = &pq->planes[pq->n++];
     for (int i = 0; i < 3; i++)
-        pl->n[i] = nt[i] / len;
+        pl->n[i] = nt[i];
     pl->d = s_dot3(pl->n, v[0]);
     return false;
 }

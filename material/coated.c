@@ -302,19 +302,10 @@ int pf_coated_sample_coat(const pf_material_t *m, pf_vec3 n, pf_vec3 wo, float u
         *pdf = 0.0f;
         return 1;
     }
-    pf_vec3 t, b;
-    pf_basis(n, &t, &b);
-    pf_vec3 lo = s_local(wo, t, b, n);
-    pf_vec3 wm = pf_ggx_sample_vn(lo, m->alpha, u1, u2);
-    float c = pf_dot(lo, wm);
-    pf_vec3 li = pf_sub(pf_scale(wm, 2.0f * c), lo);
-    if (li.z <= 0.0f || c <= 0.0f)
+    float c, g;
+    if (!pf_ggx_sample_reflect(n, wo, m->alpha, u1, u2, wi, &c, &g, pdf))
         return 0;
-    *pdf = pf_ggx_g1(lo, m->alpha) * pf_ggx_d(wm, m->alpha) / (4.0f * lo.z);
-    if (!(*pdf > 0.0f))
-        return 0;
-    *weight = pf_fresnel_dielectric(c, 1.0f, eta) * pf_ggx_g2(lo, li, m->alpha) / pf_ggx_g1(lo, m->alpha);
-    *wi = pf_norm(pf_add(pf_add(pf_scale(t, li.x), pf_scale(b, li.y)), pf_scale(n, li.z)));
+    *weight = pf_fresnel_dielectric(c, 1.0f, eta) * g;
     return 1;
 }
 

@@ -115,25 +115,35 @@ float pf_conductor_pdf(const pf_material_t *m, pf_vec3 n, pf_vec3 wo, pf_vec3 wi
     return s_pdf_local(lo, pf_scale(h, 1.0f / hl), m->alpha);
 }
 
-int pf_conductor_sample(const pf_material_t *m, pf_vec3 n, pf_vec3 wo, float u1, float u2, pf_vec3 *wi,
-                        pf_vec3 *weight, float *pdf)
+int pf_ggx_sample_reflect(pf_vec3 n, pf_vec3 wo, float alpha, float u1, float u2, pf_vec3 *wi, float *cos_h,
+                          float *g, float *pdf)
 {
     pf_vec3 t, b;
     pf_basis(n, &t, &b);
     pf_vec3 lo = pf_v3(pf_dot(wo, t), pf_dot(wo, b), pf_dot(wo, n));
     if (lo.z <= 0.0f)
         return 0;
-    pf_vec3 wm = pf_ggx_sample_vn(lo, m->alpha, u1, u2);
+    pf_vec3 wm = pf_ggx_sample_vn(lo, alpha, u1, u2);
     float c = pf_dot(lo, wm);
     pf_vec3 li = pf_sub(pf_scale(wm, 2.0f * c), lo);
     if (li.z <= 0.0f || c <= 0.0f)
         return 0;
-    *pdf = s_pdf_local(lo, wm, m->alpha);
+    *pdf = s_pdf_local(lo, wm, alpha);
     if (!(*pdf > 0.0f))
         return 0;
-    float g = pf_ggx_g2(lo, li, m->alpha) / pf_ggx_g1(lo, m->alpha);
-    *weight = pf_scale(pf_fresnel_conductor(c, m->eta, m->k), g);
+    *cos_h = c;
+    *g = pf_ggx_g2(lo, li, alpha) / pf_ggx_g1(lo, alpha);
     *wi = pf_norm(pf_add(pf_add(pf_scale(t, li.x), pf_scale(b, li.y)), pf_scale(n, li.z)));
+    return 1;
+}
+
+int pf_conductor_sample(const pf_material_t *m, pf_vec3 n, pf_vec3 wo, float u1, float u2, pf_vec3 *wi,
+                        pf_vec3 *weight, float *pdf)
+{
+    float c, g;
+    if (!pf_ggx_sample_reflect(n, wo, m->alpha, u1, u2, wi, &c, &g, pdf))
+        return 0;
+    *weight = pf_scale(pf_fresnel_conductor(c, m->eta, m->k), g);
     return 1;
 }
 

@@ -39,6 +39,14 @@ float pf_ggx_g2(pf_vec3 wo, pf_vec3 wi, float alpha);
  * G1(wo) max(0, wo.wm) D(wm) / wo.z (Heitz 2018). */
 pf_vec3 pf_ggx_sample_vn(pf_vec3 wo, float alpha, float u1, float u2);
 
+/* A GGX reflection sampled from the visible normals about n (any unit
+ * normal, its frame from pf_basis): 0 when wo is below the surface or the
+ * reflection goes below it or has zero pdf; else 1 with the world *wi, the
+ * cosine *cos_h = wo.wm that Fresnel takes, *g = G2 / G1(wo) and the
+ * solid-angle *pdf of wi. Shared by the conductor and the coat. */
+int pf_ggx_sample_reflect(pf_vec3 n, pf_vec3 wo, float alpha, float u1, float u2, pf_vec3 *wi, float *cos_h,
+                          float *g, float *pdf);
+
 /* The BRDF of a rough conductor: D G2 F / (4 cos_o cos_i), F at wo.wm.
  * Zero when either direction is below the surface. */
 pf_vec3 pf_conductor_eval(const pf_material_t *m, pf_vec3 n, pf_vec3 wo, pf_vec3 wi);
