@@ -7,8 +7,10 @@
  * disc that the scene's bounding sphere (radius R) casts, which is all of
  * it the scene can receive, an infinite light (a constant sky of radiance
  * L) 4 pi^2 R^2 lum(L): pi L through that disc from each of 4 pi
- * directions. One table serves direct lighting and photon emission so both
- * see the same distribution.
+ * directions. Photon emission chooses among all of them by power; direct
+ * light chooses the same way among all but the distant lights, which every
+ * direct estimate takes whole, a shadow ray each (a sun chosen by power
+ * beside a sky would make each sunlit sample a coin toss).
  *
  * A distant light emits photons from that disc, placed on the light's side
  * of the sphere, perpendicular to its direction; caustic photons come from
@@ -52,7 +54,15 @@ typedef struct s_entry {
 
 struct pf_lights {
     s_entry *entries;
-    double *cdf; /* n + 1 entries, cdf[n] = 1 */
+    double *cdf; /* n + 1 entries, cdf[n] = 1: photon emission's choice, by power */
+    /* Direct light's choice: the same entries by power, but the distant
+     * lights (deltas, few) at zero, since every direct estimate takes each
+     * of them with a shadow ray of its own (pf_lights_distant); dcdf is cdf
+     * itself when there are none, and all zero when only distant lights
+     * remain (nothing to choose). */
+    double *dcdf;
+    uint32_t *distant; /* the entries of the distant lights */
+    size_t ndistant;
     size_t n;
     size_t narea; /* entries [0, narea) are the area lights, sorted by (mesh, tri) */
     double power;
@@ -161,6 +171,40 @@ static int s_add_envmap(pf_lights_t *self, const pf_scene_t *scene, const pf_lig
     return 0;
 }
 
+/* Direct light's table (see dcdf): the distant lights apart, the rest by
+ * their power as in cdf. Returns PF_ENOMEM or 0. */
+static int s_direct_table(pf_lights_t *self)
+{
+    for (size_t i = 0; i < self->n; i++)
+        self->ndistant += self->entries[i].kind == S_DISTANT;
+    if (self->ndistant == 0) {
+        self->dcdf = self->cdf;
+        return 0;
+    }
+    self->dcdf = calloc(self->n + 1, sizeof *self->dcdf);
+    self->distant = calloc(self->ndistant, sizeof *self->distant);
+    if (!self->dcdf || !self->distant)
+        return PF_ENOMEM;
+    double acc = 0.0;
+    size_t k = 0, last = 0; /* last: one past the last entry with a share */
+    for (size_t i = 0; i < self->n; i++) {
+        double p = self->cdf[i + 1] - self->cdf[i];
+        self->dcdf[i] = acc;
+        if (self->entries[i].kind == S_DISTANT) {
+            self->distant[k++] = (uint32_t)i;
+            continue;
+        }
+        acc += p;
+        if (p > 0.0)
+            last = i + 1;
+    }
+    for (size_t i = 0; i < self->n; i++)
+        self->dcdf[i] = acc > 0.0 ? self->dcdf[i] / acc : 0.0;
+    for (size_t i = last; i <= self->n; i++) /* the end exactly 1: u < 1 never picks past it */
+        self->dcdf[i] = acc > 0.0 ? 1.0 : 0.0;
+    return 0;
+}
+
 pf_lights_t *pf_lights_build(const pf_scene_t *scene)
 {
     pf_lights_t *self = calloc(1, sizeof *self);
@@ -233,11 +277,17 @@ pf_lights_t *pf_lights_build(const pf_scene_t *scene)
     for (size_t i = 0; i < self->n; i++)
         self->cdf[i] /= acc;
     self->cdf[self->n] = 1.0;
-    if (psky > 0.0)
-        self->sky_pmf = (float)(1.0 - self->cdf[self->n - 1]);
-    for (size_t i = 0; i < self->n; i++)
+    if (s_direct_table(self)) {
+        pf_lights_destroy(&self);
+        return NULL;
+    }
+    for (size_t i = 0; i < self->n; i++) {
+        float pmf = (float)(self->dcdf[i + 1] - self->dcdf[i]);
         if (self->entries[i].kind == S_ENVMAP)
-            self->env[self->entries[i].light].pmf = (float)(self->cdf[i + 1] - self->cdf[i]);
+            self->env[self->entries[i].light].pmf = pmf;
+        else if (self->entries[i].kind == S_INFINITE)
+            self->sky_pmf = pmf;
+    }
     return self;
 }
 
@@ -246,7 +296,10 @@ void pf_lights_destroy(pf_lights_t **self_p)
     if (!self_p || !*self_p)
         return;
     free((*self_p)->entries);
+    if ((*self_p)->dcdf != (*self_p)->cdf)
+        free((*self_p)->dcdf);
     free((*self_p)->cdf);
+    free((*self_p)->distant);
     for (size_t i = 0; (*self_p)->env && i < (*self_p)->nenv; i++)
         pf_envlight_free(&(*self_p)->env[i]);
     free((*self_p)->env);
@@ -296,18 +349,19 @@ static int s_sky_mixture(const pf_lights_t *self, const s_entry *e, pf_vec3 n, c
 }
 size_t pf_lights_count(const pf_lights_t *self) { return self->n; }
 
-/* Picks entry i with cdf[i] <= u < cdf[i+1]; *pmf its probability. */
-static size_t s_pick(const pf_lights_t *self, float u, double *pmf)
+/* Picks entry i with cdf[i] <= u < cdf[i+1] (cdf: self->cdf or self->dcdf);
+ * *pmf its probability. */
+static size_t s_pick(const pf_lights_t *self, const double *cdf, float u, double *pmf)
 {
     size_t lo = 0, hi = self->n;
     while (hi - lo > 1) {
         size_t mid = (lo + hi) / 2;
-        if (self->cdf[mid] <= u)
+        if (cdf[mid] <= u)
             lo = mid;
         else
             hi = mid;
     }
-    *pmf = self->cdf[lo + 1] - self->cdf[lo];
+    *pmf = cdf[lo + 1] - cdf[lo];
     return lo;
 }
 
@@ -337,10 +391,12 @@ int pf_lights_sample_direct(const pf_lights_t *self, const pf_scene_t *scene, pf
 int pf_lights_sample_direct_at(const pf_lights_t *self, const pf_scene_t *scene, pf_vec3 x, pf_vec3 n,
                                const float u[3], pf_light_conn_t *out)
 {
-    if (self->n == 0)
-        return 0;
+    if (self->n == 0 || !(self->dcdf[self->n] > 0.0))
+        return 0; /* no light, or only distant ones (pf_lights_distant) */
     double pmf;
-    const s_entry *e = &self->entries[s_pick(self, u[0], &pmf)];
+    const s_entry *e = &self->entries[s_pick(self, self->dcdf, u[0], &pmf)];
+    if (!(pmf > 0.0))
+        return 0;
     if (e->kind == S_AREA) {
         pf_vec3 p, n, perr;
         s_tri_point(scene, e, u[1], u[2], &p, &n, &perr);
@@ -380,15 +436,7 @@ int pf_lights_sample_direct_at(const pf_lights_t *self, const pf_scene_t *scene,
         out->pdf = (float)pmf * local.z * PF_INV_PI;
         return 1;
     }
-    const pf_light_t *l = &scene->lights[e->light];
-    if (e->kind == S_DISTANT) {
-        /* E arrives along dir alone: the delta's weight is E itself. */
-        out->wi = pf_neg(l->dir);
-        out->dist = INFINITY;
-        out->weight = pf_scale(l->intensity, 1.0f / (float)pmf);
-        out->pdf = 0.0f;
-        return 1;
-    }
+    const pf_light_t *l = &scene->lights[e->light]; /* a point or spot: distant ones have no share here */
     pf_vec3 d = pf_sub(l->pos, x);
     float d2 = pf_len2(d);
     if (!(d2 > 0.0f))
@@ -403,6 +451,17 @@ int pf_lights_sample_direct_at(const pf_lights_t *self, const pf_scene_t *scene,
     out->weight = pf_scale(l->intensity, falloff / (d2 * (float)pmf));
     out->pdf = 0.0f;
     return 1;
+}
+
+size_t pf_lights_distant_count(const pf_lights_t *self) { return self->ndistant; }
+
+void pf_lights_distant(const pf_lights_t *self, const pf_scene_t *scene, size_t i, pf_light_conn_t *out)
+{
+    const pf_light_t *l = &scene->lights[self->entries[self->distant[i]].light];
+    out->wi = pf_neg(l->dir);
+    out->dist = INFINITY;
+    out->weight = l->intensity;
+    out->pdf = 0.0f;
 }
 
 float pf_lights_pdf(const pf_lights_t *self, const pf_scene_t *scene, pf_vec3 x, uint32_t geom, uint32_t prim,
@@ -434,7 +493,7 @@ float pf_lights_pdf(const pf_lights_t *self, const pf_scene_t *scene, pf_vec3 x,
     float cos_l = -pf_dot(d, n) / sqrtf(d2);
     if (cos_l <= 0.0f)
         return 0.0f;
-    float pmf = (float)(self->cdf[lo + 1] - self->cdf[lo]);
+    float pmf = (float)(self->dcdf[lo + 1] - self->dcdf[lo]);
     return pmf / e->area * d2 / cos_l;
 }
 
@@ -461,7 +520,7 @@ int pf_lights_emit(const pf_lights_t *self, const pf_scene_t *scene, const float
     if (self->n == 0)
         return 0;
     double pmf;
-    const s_entry *e = &self->entries[s_pick(self, u[0], &pmf)];
+    const s_entry *e = &self->entries[s_pick(self, self->cdf, u[0], &pmf)];
     if (e->kind == S_AREA) {
         pf_vec3 p, n, perr;
         s_tri_point(scene, e, u[1], u[2], &p, &n, &perr);
@@ -620,7 +679,7 @@ int pf_lights_emit_targeted(const pf_lights_t *self, const pf_scene_t *scene, co
     if (self->n == 0 || ntargets == 0)
         return 0;
     double pmf;
-    const s_entry *e = &self->entries[s_pick(self, u[0], &pmf)];
+    const s_entry *e = &self->entries[s_pick(self, self->cdf, u[0], &pmf)];
     if (e->kind == S_DISTANT) {
         const pf_light_t *ld = &scene->lights[e->light];
         return s_distant_targeted(self, ld->dir, ld->intensity, pmf, targets, ntargets, u, out);

@@ -44,9 +44,12 @@ typedef struct pf_light_conn {
                       * lights (a delta) */
 } pf_light_conn_t;
 
-/* Samples one emitter by power and a point on it, as seen from x. Returns 0
- * when the sample carries nothing (back of a one-sided light, zero distance),
- * else 1. Uses u[0..2]. */
+/* Samples one emitter by power and a point on it, as seen from x. The
+ * distant lights are not among them: a direct estimate adds each of those
+ * apart (pf_lights_distant), since a delta chosen by power would make a
+ * sunlit point's light a coin toss. Returns 0 when the sample carries
+ * nothing (back of a one-sided light, zero distance, no emitter but distant
+ * ones), else 1. Uses u[0..2]. */
 int pf_lights_sample_direct(const pf_lights_t *self, const pf_scene_t *scene, pf_vec3 x, const float u[3],
                             pf_light_conn_t *out);
 
@@ -58,6 +61,13 @@ int pf_lights_sample_direct(const pf_lights_t *self, const pf_scene_t *scene, pf
  * way. Every other light samples as there. */
 int pf_lights_sample_direct_at(const pf_lights_t *self, const pf_scene_t *scene, pf_vec3 x, pf_vec3 n,
                                const float u[3], pf_light_conn_t *out);
+
+/* The distant lights, for direct light: each makes a connection of its own
+ * (weight E, the irradiance it brings at normal incidence; pdf 0, a delta;
+ * dist INFINITY), i in [0, pf_lights_distant_count). Photon emission still
+ * chooses among all emitters by power. */
+size_t pf_lights_distant_count(const pf_lights_t *self);
+void pf_lights_distant(const pf_lights_t *self, const pf_scene_t *scene, size_t i, pf_light_conn_t *out);
 
 /* The solid-angle pdf with which pf_lights_sample_direct, called at x,
  * returns the point p on triangle prim of mesh geom (a hit's geom and

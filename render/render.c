@@ -183,9 +183,40 @@ static int s_visible(const pf_accel_t *accel, const pf_hit_t *h, pf_vec3 wi, flo
 
 static float s_power(float na, float a, float nb, float b);
 
-/* Direct light at a non-specular hit: light_samples shadow rays. A rough
- * coat's lobe is weighted by MIS against its BSDF ray (s_coat) when
- * `recurse` says that ray is traced; the base is light sampling's alone. */
+/* One light connection's radiance towards wo at a non-specular hit: f cos
+ * Le / pdf, zero when occluded. A rough conductor's, and a rough coat's
+ * lobe, are weighted by MIS against its BSDF ray when `recurse` says that ray
+ * is traced (nl light samples against one); the base is light sampling's
+ * alone, and so is a delta light (pdf 0). */
+static pf_vec3 s_connect(const s_state *st, const pf_hit_t *h, const pf_material_t *m, pf_vec3 nf, pf_vec3 ns,
+                         pf_vec3 wo, const pf_light_conn_t *lc, int nl, int recurse)
+{
+    const pf_render_ctx_t *c = st->ctx;
+    float cos_x = pf_dot(lc->wi, ns);
+    if (cos_x <= 0.0f || pf_dot(lc->wi, nf) <= 0.0f)
+        return pf_v3s(0.0f);
+    int mis = recurse && lc->pdf > 0.0f;
+    pf_vec3 f;
+    float w = 1.0f;
+    if (m->type == PF_MAT_CONDUCTOR) {
+        f = pf_conductor_eval(m, ns, wo, lc->wi);
+        if (mis)
+            w = s_power((float)nl, lc->pdf, 1.0f, pf_conductor_pdf(m, ns, wo, lc->wi));
+    } else {
+        f = pf_brdf_eval(m, ns, lc->wi, wo);
+        if (pf_mat_coated(m)) {
+            pf_coated_f_t cf = pf_coated_eval(m, ns, wo, lc->wi);
+            float wc = mis ? s_power((float)nl, lc->pdf, 1.0f, cf.coat_pdf) : 1.0f;
+            f = pf_add(cf.base, pf_v3s(cf.coat * wc));
+        }
+    }
+    if (pf_is_black(f) || !s_visible(c->accel, h, lc->wi, lc->dist))
+        return pf_v3s(0.0f);
+    return pf_scale(pf_mul(f, lc->weight), cos_x * w);
+}
+
+/* Direct light at a non-specular hit: light_samples shadow rays to emitters
+ * chosen by power, and one to each distant light (see s_connect for MIS). */
 static pf_vec3 s_direct(s_state *st, const pf_hit_t *h, const pf_material_t *m, pf_vec3 nf, pf_vec3 ns, pf_vec3 wo,
                         int recurse)
 {
@@ -195,22 +226,16 @@ static pf_vec3 s_direct(s_state *st, const pf_hit_t *h, const pf_material_t *m, 
     for (int i = 0; i < n; i++) {
         float u[3] = { s_u(st), s_u(st), s_u(st) };
         pf_light_conn_t lc;
-        if (!pf_lights_sample_direct_at(c->lights, c->scene, h->p, ns, u, &lc))
-            continue;
-        float cos_x = pf_dot(lc.wi, ns);
-        if (cos_x <= 0.0f || pf_dot(lc.wi, nf) <= 0.0f)
-            continue;
-        pf_vec3 f = pf_brdf_eval(m, ns, lc.wi, wo);
-        if (pf_mat_coated(m)) {
-            pf_coated_f_t cf = pf_coated_eval(m, ns, wo, lc.wi);
-            float w = recurse && lc.pdf > 0.0f ? s_power((float)n, lc.pdf, 1.0f, cf.coat_pdf) : 1.0f;
-            f = pf_add(cf.base, pf_v3s(cf.coat * w));
-        }
-        if (pf_is_black(f) || !s_visible(c->accel, h, lc.wi, lc.dist))
-            continue;
-        sum = pf_add(sum, pf_scale(pf_mul(f, lc.weight), cos_x));
+        if (pf_lights_sample_direct_at(c->lights, c->scene, h->p, ns, u, &lc))
+            sum = pf_add(sum, s_connect(st, h, m, nf, ns, wo, &lc, n, recurse));
     }
-    return pf_scale(sum, 1.0f / (float)n);
+    sum = pf_scale(sum, 1.0f / (float)n);
+    for (size_t i = 0; i < pf_lights_distant_count(c->lights); i++) {
+        pf_light_conn_t lc;
+        pf_lights_distant(c->lights, c->scene, i, &lc);
+        sum = pf_add(sum, s_connect(st, h, m, nf, ns, wo, &lc, n, recurse));
+    }
+    return sum;
 }
 
 /* Where a gather ray ends: its radiance, or, at a diffuse surface read
@@ -413,22 +438,7 @@ static pf_vec3 s_rough(s_state *st, const pf_hit_t *h, const pf_material_t *m, p
     const pf_render_ctx_t *c = st->ctx;
     int recurse = depth < c->settings.max_depth;
     int n = c->settings.light_samples > 0 ? c->settings.light_samples : 1;
-    pf_vec3 sum = pf_v3s(0.0f);
-    for (int i = 0; (c->terms & PF_TERM_DIRECT) && i < n; i++) {
-        float u[3] = { s_u(st), s_u(st), s_u(st) };
-        pf_light_conn_t lc;
-        if (!pf_lights_sample_direct_at(c->lights, c->scene, h->p, ns, u, &lc))
-            continue;
-        float cos_x = pf_dot(lc.wi, ns);
-        if (cos_x <= 0.0f || pf_dot(lc.wi, nf) <= 0.0f)
-            continue;
-        pf_vec3 f = pf_conductor_eval(m, ns, wo, lc.wi);
-        if (pf_is_black(f) || !s_visible(c->accel, h, lc.wi, lc.dist))
-            continue;
-        float w = recurse && lc.pdf > 0.0f ? s_power((float)n, lc.pdf, 1.0f, pf_conductor_pdf(m, ns, wo, lc.wi)) : 1.0f;
-        sum = pf_add(sum, pf_scale(pf_mul(f, lc.weight), cos_x * w));
-    }
-    pf_vec3 L = pf_scale(sum, 1.0f / (float)n);
+    pf_vec3 L = (c->terms & PF_TERM_DIRECT) ? s_direct(st, h, m, nf, ns, wo, recurse) : pf_v3s(0.0f);
     pf_vec3 wi, wgt;
     float pdf, u1 = recurse ? s_u(st) : 0.0f, u2 = recurse ? s_u(st) : 0.0f;
     if (!recurse || !pf_conductor_sample(m, ns, wo, u1, u2, &wi, &wgt, &pdf) || pf_dot(wi, nf) <= 0.0f)

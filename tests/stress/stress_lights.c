@@ -55,7 +55,8 @@
 /* The direction the sunlight travels: 25 degrees from straight down. */
 static pf_vec3 s_sun_dir(void) { return pf_norm(pf_v3(0.35f, -1.0f, -0.25f)); }
 
-static pf_scene_t *s_sun_scene(int blocker, float blocker_kd)
+/* sky: a constant sky's radiance beside the sun (0: none). */
+static pf_scene_t *s_sun_scene(int blocker, float blocker_kd, float sky)
 {
     pf_scene_t *scene = pf_scene_create();
     uint32_t mat = stress_material(scene, stress_diffuse("plane", S_KD, 0.0f));
@@ -68,6 +69,10 @@ static pf_scene_t *s_sun_scene(int blocker, float blocker_kd)
     }
     pf_light_t l = { .type = PF_LIGHT_DISTANT, .dir = s_sun_dir(), .intensity = pf_v3s(S_E) };
     PF_CHECK(pf_scene_add_light(scene, &l) == PF_OK);
+    if (sky > 0.0f) {
+        pf_light_t inf = { .type = PF_LIGHT_INFINITE, .intensity = pf_v3s(sky) };
+        PF_CHECK(pf_scene_add_light(scene, &inf) == PF_OK);
+    }
     /* on the shadow's side, so the blocker hides none of it */
     stress_camera(scene, pf_v3(2.5f, 5.0f, -2.5f), pf_v3(0.1f, 0, -0.1f), pf_v3(0, 1, 0), 60.0f);
     pf_error_t err = { { 0 } };
@@ -112,7 +117,7 @@ static int s_pixel_class(const pf_camera_t *cam, int px, int py, int blocker)
 /* The lone plane: direct light per pixel, the stored flux, the photon map. */
 static void s_test_sun_plane(void)
 {
-    pf_scene_t *scene = s_sun_scene(0, 0.0f);
+    pf_scene_t *scene = s_sun_scene(0, 0.0f, 0.0f);
     double cos_t = -s_sun_dir().y, lit = S_KD / PF_PI * S_E * cos_t;
     pf_settings_t s = stress_settings(scene, 48, 4, 200000, 8);
     stress_job_t job;
@@ -174,7 +179,7 @@ static void s_test_sun_shadow(void)
     double lit = S_KD / PF_PI * S_E * -s_sun_dir().y;
     for (int grey = 0; grey < 2; grey++) {
         const char *what = grey ? "sun shadow, grey blocker" : "sun shadow, black blocker";
-        pf_scene_t *scene = s_sun_scene(1, grey ? 0.5f : 0.0f);
+        pf_scene_t *scene = s_sun_scene(1, grey ? 0.5f : 0.0f, 0.0f);
         pf_settings_t s = stress_settings(scene, 96, 4, 200000, 16);
         pf_image_t full, direct;
         if (stress_render(what, scene, &s, PF_TERM_ALL, &full, NULL) != PF_OK) {
@@ -227,10 +232,47 @@ static void s_test_sun_shadow(void)
     }
 }
 
+/* The lone plane under the sun and a constant sky together (an interior's
+ * pair): the direct term is kd / pi (E cos + pi L) in every pixel wholly on
+ * the plane, with no noise: the sun is taken whole by a shadow ray of its
+ * own, and the sky's cosine-weighted samples all escape. A choice between
+ * them by power would make each light sample the sun's or the sky's, and
+ * pixels would scatter about that value. */
+static void s_test_sun_and_sky(void)
+{
+    const float sky = 0.3f;
+    pf_scene_t *scene = s_sun_scene(0, 0.0f, sky);
+    double want = S_KD / PF_PI * (S_E * -s_sun_dir().y + PF_PI * sky);
+    pf_settings_t s = stress_settings(scene, 48, 4, 20000, 8);
+    pf_image_t direct;
+    if (stress_render("sun and sky", scene, &s, PF_TERM_DIRECT, &direct, NULL) == PF_OK) {
+        pf_camera_t cam = pf_camera_make(&scene->camera, direct.width, direct.height);
+        size_t n = 0, bad = 0;
+        double worst = 0.0;
+        for (int py = 0; py < direct.height; py++)
+            for (int px = 0; px < direct.width; px++) {
+                if (s_pixel_class(&cam, px, py, 0) != 0)
+                    continue;
+                double ex = fabs(direct.rgb[3 * ((size_t)py * (size_t)direct.width + (size_t)px)] / want - 1.0);
+                worst = fmax(worst, ex);
+                bad += ex > 1e-4;
+                n++;
+            }
+        printf("sun and sky: %zu pixels wholly on the plane, worst relative error against kd/pi (E cos + pi L) = "
+               "%.6f: %.2e (bound 1e-4)\n",
+               n, want, worst);
+        CHECK(n > 1000 && bad == 0, "sun and sky: %zu of %zu pixels off kd/pi (E cos + pi L) by more than 1e-4 (worst %.3g)",
+              bad, n, worst);
+        pf_image_free(&direct);
+    }
+    pf_scene_destroy(&scene);
+}
+
 void stress_test_distant(void)
 {
     s_test_sun_plane();
     s_test_sun_shadow();
+    s_test_sun_and_sky();
 }
 
 #define S_SKY 0.8f /* the sky's radiance */
