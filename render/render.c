@@ -133,6 +133,11 @@ typedef struct s_state {
     pf_vec3 mis_x, mis_n; /* mis_n: x's shading normal, about which the sky was sampled */
     float mis_pdf;
     int mis_nl;
+    /* The gather under way at a diffuse point weighs the sky its rays see
+     * directly by MIS against that point's light samples (s_sky_mis_n):
+     * sky_ng rays about sky_ns (0: the sky seen counts nothing). */
+    int sky_ng;
+    pf_vec3 sky_ns;
     pf_pm_scratch_t scratch;
 } s_state;
 
@@ -187,9 +192,11 @@ static float s_power(float na, float a, float nb, float b);
  * Le / pdf, zero when occluded. A rough conductor's, and a rough coat's
  * lobe, are weighted by MIS against its BSDF ray when `recurse` says that ray
  * is traced (nl light samples against one); the base is light sampling's
- * alone, and so is a delta light (pdf 0). */
+ * alone, and so is a delta light (pdf 0). At a diffuse point whose ng > 0
+ * cosine-distributed gather rays count the sky they see (s_sky_mis_n), a sky
+ * sample is weighted by MIS against them. */
 static pf_vec3 s_connect(const s_state *st, const pf_hit_t *h, const pf_material_t *m, pf_vec3 nf, pf_vec3 ns,
-                         pf_vec3 wo, const pf_light_conn_t *lc, int nl, int recurse)
+                         pf_vec3 wo, const pf_light_conn_t *lc, int nl, int recurse, int ng)
 {
     const pf_render_ctx_t *c = st->ctx;
     float cos_x = pf_dot(lc->wi, ns);
@@ -204,6 +211,8 @@ static pf_vec3 s_connect(const s_state *st, const pf_hit_t *h, const pf_material
             w = s_power((float)nl, lc->pdf, 1.0f, pf_conductor_pdf(m, ns, wo, lc->wi));
     } else {
         f = pf_brdf_eval(m, ns, lc->wi, wo);
+        if (ng > 0 && isinf(lc->dist) && lc->pdf > 0.0f) /* the sky, against ng gather rays */
+            w = s_power((float)nl, lc->pdf, (float)ng, cos_x * PF_INV_PI);
         if (pf_mat_coated(m)) {
             pf_coated_f_t cf = pf_coated_eval(m, ns, wo, lc->wi);
             float wc = mis ? s_power((float)nl, lc->pdf, 1.0f, cf.coat_pdf) : 1.0f;
@@ -216,9 +225,10 @@ static pf_vec3 s_connect(const s_state *st, const pf_hit_t *h, const pf_material
 }
 
 /* Direct light at a non-specular hit: light_samples shadow rays to emitters
- * chosen by power, and one to each distant light (see s_connect for MIS). */
+ * chosen by power, and one to each distant light (see s_connect for MIS and
+ * ng). */
 static pf_vec3 s_direct(s_state *st, const pf_hit_t *h, const pf_material_t *m, pf_vec3 nf, pf_vec3 ns, pf_vec3 wo,
-                        int recurse)
+                        int recurse, int ng)
 {
     const pf_render_ctx_t *c = st->ctx;
     int n = c->settings.light_samples > 0 ? c->settings.light_samples : 1;
@@ -227,13 +237,13 @@ static pf_vec3 s_direct(s_state *st, const pf_hit_t *h, const pf_material_t *m, 
         float u[3] = { s_u(st), s_u(st), s_u(st) };
         pf_light_conn_t lc;
         if (pf_lights_sample_direct_at(c->lights, c->scene, h->p, ns, u, &lc))
-            sum = pf_add(sum, s_connect(st, h, m, nf, ns, wo, &lc, n, recurse));
+            sum = pf_add(sum, s_connect(st, h, m, nf, ns, wo, &lc, n, recurse, ng));
     }
     sum = pf_scale(sum, 1.0f / (float)n);
     for (size_t i = 0; i < pf_lights_distant_count(c->lights); i++) {
         pf_light_conn_t lc;
         pf_lights_distant(c->lights, c->scene, i, &lc);
-        sum = pf_add(sum, s_connect(st, h, m, nf, ns, wo, &lc, n, recurse));
+        sum = pf_add(sum, s_connect(st, h, m, nf, ns, wo, &lc, n, recurse, 0));
     }
     return sum;
 }
@@ -261,11 +271,36 @@ static pf_dielectric_t s_glass(s_state *st, const pf_material_t *m, pf_vec3 d, p
     return pf_dielectric_rough_at(m, d, ng, wo, ns, u1, u2);
 }
 
+/* The sky a gather ray sees straight from its diffuse point, weighted by MIS
+ * against that point's light samples (st->sky_*; s_connect's other half). */
+static pf_vec3 s_gather_sky(const s_state *st, pf_vec3 d)
+{
+    const pf_render_ctx_t *c = st->ctx;
+    pf_vec3 sky = pf_lights_sky(c->lights, d);
+    float cos = pf_dot(d, st->sky_ns);
+    if (pf_is_black(sky) || !(cos > 0.0f))
+        return pf_v3s(0.0f);
+    int nl = c->settings.light_samples > 0 ? c->settings.light_samples : 1;
+    float pl = pf_lights_sky_pdf(c->lights, st->sky_ns, d);
+    return pf_scale(sky, s_power((float)st->sky_ng, cos * PF_INV_PI, (float)nl, pl));
+}
+
+/* The gather rays at a diffuse point of material m that count the sky they
+ * see directly (MIS against its light samples): its ng rays when the point
+ * is plainly diffuse and both direct light and the gather are rendered,
+ * else 0 (the sky is light sampling's alone). */
+static int s_sky_mis_n(const s_state *st, const pf_material_t *m, int ng)
+{
+    unsigned both = PF_TERM_DIRECT | PF_TERM_INDIRECT;
+    return m->type == PF_MAT_DIFFUSE && (st->ctx->terms & both) == both ? ng : 0;
+}
+
 /* Traces a final-gather ray to its end: mirrors and glass (solid or thin)
  * on the way are followed (one branch chosen by Fresnel); at the first
  * non-specular surface
  * the radiance it leaves towards the ray's origin, from the global map
- * (emission not counted). */
+ * (emission not counted); the sky seen straight from the point, as
+ * s_gather_sky weighs it (when st->sky_ng says so). */
 static void s_gather_trace(s_state *st, pf_ray_t ray, s_gather_end *end)
 {
     const pf_render_ctx_t *c = st->ctx;
@@ -275,8 +310,11 @@ static void s_gather_trace(s_state *st, pf_ray_t ray, s_gather_end *end)
     pf_vec3 thr = pf_v3s(1.0f);
     for (int depth = 0; depth < c->settings.max_depth; depth++) {
         pf_hit_t h;
-        if (!pf_accel_intersect(c->accel, &ray, INFINITY, &h))
+        if (!pf_accel_intersect(c->accel, &ray, INFINITY, &h)) {
+            if (depth == 0 && st->sky_ng > 0)
+                end->value = s_gather_sky(st, ray.d);
             return;
+        }
         pf_material_t mt = pf_material_at(c->scene, &h);
         const pf_material_t *m = &mt;
         pf_vec3 wo = pf_neg(ray.d);
@@ -370,9 +408,13 @@ static void s_defer_flush(const s_state *st, s_defer *d)
 
 /* The final gather at a diffuse hit: adds to *sum the radiances of n
  * cosine-distributed gather rays (their mean times kd is the reflected
- * radiance: f cos / pdf = kd), each as s_gather_add. */
-static void s_gather_sum(s_state *st, const pf_hit_t *h, pf_vec3 nf, pf_vec3 ns, int n, s_defer *d, pf_vec3 *sum)
+ * radiance: f cos / pdf = kd), each as s_gather_add; sky: whether they count
+ * the sky they see (s_sky_mis_n's answer, n or 0). */
+static void s_gather_sum(s_state *st, const pf_hit_t *h, pf_vec3 nf, pf_vec3 ns, int n, int sky, s_defer *d,
+                         pf_vec3 *sum)
 {
+    st->sky_ng = sky;
+    st->sky_ns = ns;
     for (int i = 0; i < n; i++) {
         pf_vec3 wi = pf_to_world(pf_sample_cosine(s_u(st), s_u(st)), ns);
         if (pf_dot(wi, nf) > 0.0f)
@@ -380,27 +422,28 @@ static void s_gather_sum(s_state *st, const pf_hit_t *h, pf_vec3 nf, pf_vec3 ns,
     }
 }
 
-static pf_vec3 s_gather_mean(s_state *st, const pf_hit_t *h, pf_vec3 nf, pf_vec3 ns, int n)
+static pf_vec3 s_gather_mean(s_state *st, const pf_hit_t *h, pf_vec3 nf, pf_vec3 ns, int n, int sky)
 {
     pf_vec3 sum = pf_v3s(0.0f);
-    s_gather_sum(st, h, nf, ns, n, NULL, &sum);
+    s_gather_sum(st, h, nf, ns, n, sky, NULL, &sum);
     return pf_scale(sum, 1.0f / (float)n);
 }
 
 /* The first gather of a camera sample (depth 0), from its own random stream
  * so that any tile can compute it for any pixel (pf_render_tile's records):
  * its rays' radiances added to *sum, as s_gather_sum (d included). */
-static void s_first_gather_sum(s_state *st, const pf_hit_t *h, pf_vec3 nf, pf_vec3 ns, s_defer *d, pf_vec3 *sum)
+static void s_first_gather_sum(s_state *st, const pf_hit_t *h, pf_vec3 nf, pf_vec3 ns, int sky, s_defer *d,
+                               pf_vec3 *sum)
 {
     pf_rng_t pixel_rng = st->rng;
     st->rng = pf_rng_make(st->ctx->settings.seed, PF_STREAM_GATHER, st->pixel, st->sample);
-    s_gather_sum(st, h, nf, ns, st->ctx->settings.gather, d, sum);
+    s_gather_sum(st, h, nf, ns, st->ctx->settings.gather, sky, d, sum);
     st->rng = pixel_rng;
 }
 
 /* The first gather of a camera sample as the render pass takes it: the
  * filtered gather of the pixel's surface it lies on, else its own. */
-static pf_vec3 s_first_gather(s_state *st, const pf_hit_t *h, pf_vec3 nf, pf_vec3 ns)
+static pf_vec3 s_first_gather(s_state *st, const pf_hit_t *h, pf_vec3 nf, pf_vec3 ns, int sky)
 {
     /* The surfaces are tried in the order they were found, as the records
      * assigned each sample to the first that took it (or to none of the
@@ -410,7 +453,7 @@ static pf_vec3 s_first_gather(s_state *st, const pf_hit_t *h, pf_vec3 nf, pf_vec
     if (st->rec && k < st->rec->nc)
         return st->gf[k];
     pf_vec3 sum = pf_v3s(0.0f);
-    s_first_gather_sum(st, h, nf, ns, NULL, &sum);
+    s_first_gather_sum(st, h, nf, ns, sky, NULL, &sum);
     return pf_scale(sum, 1.0f / (float)st->ctx->settings.gather);
 }
 
@@ -438,7 +481,7 @@ static pf_vec3 s_rough(s_state *st, const pf_hit_t *h, const pf_material_t *m, p
     const pf_render_ctx_t *c = st->ctx;
     int recurse = depth < c->settings.max_depth;
     int n = c->settings.light_samples > 0 ? c->settings.light_samples : 1;
-    pf_vec3 L = (c->terms & PF_TERM_DIRECT) ? s_direct(st, h, m, nf, ns, wo, recurse) : pf_v3s(0.0f);
+    pf_vec3 L = (c->terms & PF_TERM_DIRECT) ? s_direct(st, h, m, nf, ns, wo, recurse, 0) : pf_v3s(0.0f);
     pf_vec3 wi, wgt;
     float pdf, u1 = recurse ? s_u(st) : 0.0f, u2 = recurse ? s_u(st) : 0.0f;
     if (!recurse || !pf_conductor_sample(m, ns, wo, u1, u2, &wi, &wgt, &pdf) || pf_dot(wi, nf) <= 0.0f)
@@ -538,21 +581,23 @@ static pf_vec3 s_radiance(s_state *st, pf_ray_t ray, int depth, pf_vec3 thr, int
                                          &st->scratch, NULL);
             return pf_add(L, pf_scale(pf_mul(kd, e), PF_INV_PI));
         }
+        /* the gather's rays: the filtered first gather's count, else fewer
+         * below dim specular branches */
+        int filtered = primary && st->filtering;
+        int ng = (int)ceilf((float)c->settings.gather * fminf(1.0f, pf_maxc(thr)));
+        ng = !(c->terms & PF_TERM_INDIRECT) || pf_is_black(kd) ? 0 : filtered ? c->settings.gather : ng;
+        int sky = s_sky_mis_n(st, m, ng);
         if (c->terms & PF_TERM_DIRECT)
-            L = pf_add(L, s_direct(st, &h, m, nf, ns, wo, depth < c->settings.max_depth));
+            L = pf_add(L, s_direct(st, &h, m, nf, ns, wo, depth < c->settings.max_depth, sky));
         if (!pf_is_black(kd)) {
             if (c->terms & PF_TERM_CAUSTIC) {
                 pf_vec3 e = s_caustic(st, h.p, nf);
                 L = pf_add(L, pf_scale(pf_mul(kd, e), PF_INV_PI));
             }
-            if (c->terms & PF_TERM_INDIRECT) {
-                float w = fminf(1.0f, pf_maxc(thr));
-                int n = (int)ceilf((float)c->settings.gather * w);
-                if (primary && st->filtering)
-                    L = pf_add(L, pf_mul(kd, s_first_gather(st, &h, nf, ns)));
-                else if (n > 0)
-                    L = pf_add(L, pf_mul(kd, s_gather_mean(st, &h, nf, ns, n)));
-            }
+            if (filtered && ng > 0)
+                L = pf_add(L, pf_mul(kd, s_first_gather(st, &h, nf, ns, sky)));
+            else if (ng > 0)
+                L = pf_add(L, pf_mul(kd, s_gather_mean(st, &h, nf, ns, ng, sky)));
         }
         if (pf_mat_coated(m))
             L = pf_add(L, s_coat(st, &h, m, nf, ns, wo, depth, thr));
@@ -605,6 +650,7 @@ pf_vec3 pf_render_gather_rays(const pf_render_ctx_t *ctx, const pf_ray_t *rays, 
     st.caustic_hint = INFINITY;
     st.filtering = 0;
     st.rec = NULL;
+    st.sky_ng = 0;
     s_defer d;
     d.n = 0;
     pf_vec3 sum = pf_v3s(0.0f);
@@ -740,7 +786,8 @@ static void s_record_pixel(s_state *st, const pf_pattern_t *pt, int px, int py, 
         pf_hit_t h;
         pf_vec3 nf, ns;
         float length;
-        if (!s_primary_hit(c, ray, &h, &nf, &ns, &length))
+        const pf_material_t *m = s_primary_hit(c, ray, &h, &nf, &ns, &length);
+        if (!m)
             continue;
         int k = pf_filter_rec_find(rec, h.p, nf);
         if (k == PF_FILTER_MAX_CLUSTERS)
@@ -752,7 +799,8 @@ static void s_record_pixel(s_state *st, const pf_pattern_t *pt, int px, int py, 
         }
         sums[nb] = pf_v3s(0.0f);
         owner[nb] = k;
-        s_first_gather_sum(st, &h, nf, ns, &d, &sums[nb++]);
+        int sky = (c->terms & PF_TERM_INDIRECT) ? s_sky_mis_n(st, m, c->settings.gather) : 0;
+        s_first_gather_sum(st, &h, nf, ns, sky, &d, &sums[nb++]);
         if (nb == S_DEFER_MAX || c->reads_at_once)
             nb = s_record_flush(st, &d, sums, owner, nb, rec);
     }
