@@ -98,6 +98,7 @@
 #include "material/bsdf.h"
 #include "material/coated.h"
 #include "material/dielectric.h"
+#include "material/difftrans.h"
 #include "material/ggx.h"
 #include "photon/irrtex.h"
 #include "render/filter_impl.h"
@@ -185,22 +186,26 @@ static float s_power(float na, float a, float nb, float b);
 
 /* Direct light at a non-specular hit: light_samples shadow rays. A rough
  * coat's lobe is weighted by MIS against its BSDF ray (s_coat) when
- * `recurse` says that ray is traced; the base is light sampling's alone. */
+ * `recurse` says that ray is traced; the base is light sampling's alone.
+ * A diffuse transmitter takes light_samples on each side, each set
+ * counting only the light its side's hemisphere receives (the sky sampled
+ * about that side's normal), so a light behind the sheet shines through. */
 static pf_vec3 s_direct(s_state *st, const pf_hit_t *h, const pf_material_t *m, pf_vec3 nf, pf_vec3 ns, pf_vec3 wo,
                         int recurse)
 {
     const pf_render_ctx_t *c = st->ctx;
     int n = c->settings.light_samples > 0 ? c->settings.light_samples : 1;
     pf_vec3 sum = pf_v3s(0.0f);
-    for (int i = 0; i < n; i++) {
+    for (int i = 0; i < (pf_mat_difftrans(m) ? 2 * n : n); i++) {
         float u[3] = { s_u(st), s_u(st), s_u(st) };
         pf_light_conn_t lc;
-        if (!pf_lights_sample_direct_at(c->lights, c->scene, h->p, ns, u, &lc))
+        pf_vec3 sn = i < n ? ns : pf_neg(ns), sf = i < n ? nf : pf_neg(nf);
+        if (!pf_lights_sample_direct_at(c->lights, c->scene, h->p, sn, u, &lc))
             continue;
-        float cos_x = pf_dot(lc.wi, ns);
-        if (cos_x <= 0.0f || pf_dot(lc.wi, nf) <= 0.0f)
+        float cos_x = pf_dot(lc.wi, sn);
+        if (cos_x <= 0.0f || pf_dot(lc.wi, sf) <= 0.0f)
             continue;
-        pf_vec3 f = pf_brdf_eval(m, ns, lc.wi, wo);
+        pf_vec3 f = pf_mat_difftrans(m) ? pf_difftrans_eval(m, ns, wo, lc.wi) : pf_brdf_eval(m, ns, lc.wi, wo);
         if (pf_mat_coated(m)) {
             pf_coated_f_t cf = pf_coated_eval(m, ns, wo, lc.wi);
             float w = recurse && lc.pdf > 0.0f ? s_power((float)n, lc.pdf, 1.0f, cf.coat_pdf) : 1.0f;
@@ -257,9 +262,17 @@ static void s_gather_trace(s_state *st, pf_ray_t ray, s_gather_end *end)
         pf_vec3 wo = pf_neg(ray.d);
         pf_vec3 nf = pf_face_forward(h.ng, wo);
         pf_vec3 ns = pf_dot(h.ng, nf) > 0.0f ? h.ns : pf_neg(h.ns);
-        if (m->type == PF_MAT_DIFFUSE || pf_mat_coated(m)) {
+        if (m->type == PF_MAT_DIFFUSE || pf_mat_coated(m) || pf_mat_difftrans(m)) {
             if (!pf_mat_nonspecular(m))
                 return;
+            if (pf_mat_difftrans(m)) { /* both sides' irradiance, by the direct lookup */
+                const pf_photon_maps_t *pm = c->maps;
+                pf_vec3 ef = pf_irradiance_lookup(pm->irradiance, pm->irradiance_r2, c->accel, h.p, nf);
+                pf_vec3 eb = pf_irradiance_lookup(pm->irradiance, pm->irradiance_r2, c->accel, h.p, pf_neg(nf));
+                pf_vec3 l = pf_scale(pf_add(pf_mul(m->kd, ef), pf_mul(m->kt, eb)), PF_INV_PI);
+                end->value = pf_mul(thr, l);
+                return;
+            }
             if (pf_mat_glossy(m)) {
                 pf_vec3 l = pf_pm_radiance(c->maps->global, m, h.p, nf, wo, c->settings.global_k,
                                            c->maps->global_r2, c->shrink2, &st->scratch);
@@ -497,6 +510,30 @@ static pf_vec3 s_sky(const s_state *st, pf_vec3 d, int count_le)
     return pf_scale(sky, s_power(1.0f, st->mis_pdf, (float)st->mis_nl, pl));
 }
 
+/* The light a diffuse transmitter x passes from its far side (-nf), as
+ * the D rows take it on the near side: kt times the caustic irradiance and
+ * the final gather there (its direct light is s_direct's); with the
+ * photon-map view, the global map's estimate there. Not filtered: the
+ * first-gather records serve the near side. */
+static pf_vec3 s_transmitted(s_state *st, const pf_hit_t *h, const pf_material_t *m, pf_vec3 nf, pf_vec3 ns,
+                             pf_vec3 thr)
+{
+    const pf_render_ctx_t *c = st->ctx;
+    pf_vec3 bf = pf_neg(nf), bs = pf_neg(ns), e = pf_v3s(0.0f);
+    if (pf_is_black(m->kt))
+        return e;
+    if (c->terms & PF_TERM_PHOTONMAP)
+        return pf_scale(pf_mul(m->kt, pf_pm_irradiance(c->maps->global, h->p, bf, c->settings.global_k,
+                                                       c->maps->global_r2, &st->scratch, NULL)),
+                        PF_INV_PI);
+    if (c->terms & PF_TERM_CAUSTIC)
+        e = pf_scale(s_caustic(st, h->p, bf), PF_INV_PI);
+    int n = (int)ceilf((float)c->settings.gather * fminf(1.0f, pf_maxc(thr)));
+    if ((c->terms & PF_TERM_INDIRECT) && n > 0)
+        e = pf_add(e, s_gather_mean(st, h, bf, bs, n));
+    return pf_mul(m->kt, e);
+}
+
 /* Radiance along a camera path. thr is the path's throughput so far (to size
  * the final gather below dim specular branches); count_le says whether an
  * emitter hit here counts (see the table above): 0 no, 1 yes, 2 with the MIS
@@ -517,7 +554,7 @@ static pf_vec3 s_radiance(s_state *st, pf_ray_t ray, int depth, pf_vec3 thr, int
     if (pf_mat_rough(m))
         return pf_add(L, s_rough(st, &h, m, nf, ns, wo, depth, thr));
 
-    if (m->type == PF_MAT_DIFFUSE || pf_mat_coated(m)) {
+    if (m->type == PF_MAT_DIFFUSE || pf_mat_coated(m) || pf_mat_difftrans(m)) {
         if (!pf_mat_nonspecular(m))
             return L;
         pf_vec3 kd = pf_mat_coated(m) ? pf_coated_kd(m, pf_dot(wo, ns), 0) : m->kd;
@@ -526,6 +563,8 @@ static pf_vec3 s_radiance(s_state *st, pf_ray_t ray, int depth, pf_vec3 thr, int
              * precomputed points, which a scene without indirect light lacks. */
             pf_vec3 e = pf_pm_irradiance(c->maps->global, h.p, nf, c->settings.global_k, c->maps->global_r2,
                                          &st->scratch, NULL);
+            if (pf_mat_difftrans(m))
+                L = pf_add(L, s_transmitted(st, &h, m, nf, ns, thr));
             return pf_add(L, pf_scale(pf_mul(kd, e), PF_INV_PI));
         }
         if (c->terms & PF_TERM_DIRECT)
@@ -546,6 +585,8 @@ static pf_vec3 s_radiance(s_state *st, pf_ray_t ray, int depth, pf_vec3 thr, int
         }
         if (pf_mat_coated(m))
             L = pf_add(L, s_coat(st, &h, m, nf, ns, wo, depth, thr));
+        if (pf_mat_difftrans(m) && !(c->terms & PF_TERM_PHOTONMAP))
+            L = pf_add(L, s_transmitted(st, &h, m, nf, ns, thr));
         if (pf_mat_glossy(m) && depth < c->settings.max_depth) {
             pf_vec3 r = pf_reflect(wo, ns);
             pf_vec3 wi = pf_to_world(pf_sample_phong(s_u(st), s_u(st), m->ns), r);
@@ -650,7 +691,7 @@ static const pf_material_t *s_primary_hit(const pf_render_ctx_t *c, pf_ray_t ray
         pf_vec3 wo = pf_neg(ray.d);
         *nf = pf_face_forward(h->ng, wo);
         *ns = pf_dot(h->ng, *nf) > 0.0f ? h->ns : pf_neg(h->ns);
-        if (m->type == PF_MAT_DIFFUSE || pf_mat_coated(m))
+        if (m->type == PF_MAT_DIFFUSE || pf_mat_coated(m) || pf_mat_difftrans(m))
             return pf_mat_nonspecular(m) && !pf_is_black(m->kd) ? &c->scene->mats[h->mat] : NULL;
         if (depth >= c->settings.max_depth)
             return NULL;
