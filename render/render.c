@@ -528,7 +528,11 @@ static pf_vec3 s_transmitted(s_state *st, const pf_hit_t *h, const pf_material_t
                         PF_INV_PI);
     if (c->terms & PF_TERM_CAUSTIC)
         e = pf_scale(s_caustic(st, h->p, bf), PF_INV_PI);
+    /* The near side's first gather is shared over (2 g + 1)^2 pixels when
+     * filtering; the far side's is not, so it takes 2 g + 1 times the rays
+     * to keep its noise nearer the near side's. */
     int n = (int)ceilf((float)c->settings.gather * fminf(1.0f, pf_maxc(thr)));
+    n *= st->filtering ? 2 * c->settings.gather_filter + 1 : 1;
     if ((c->terms & PF_TERM_INDIRECT) && n > 0)
         e = pf_add(e, s_gather_mean(st, h, bf, bs, n));
     return pf_mul(m->kt, e);
