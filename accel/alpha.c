@@ -3,7 +3,8 @@
  * keeps the hit, a <= 0 skips it, and in between the hit is skipped when a
  * hash of the ray (the bits of its origin and direction) maps above a, so a
  * half-transparent leaf lets half the rays through, the same ones every
- * time. The filters run inside Embree's traversal on whatever thread
+ * time. The texture is the mesh's, or, on a mesh without one, that of the
+ * hit triangle's material (an MTL map_d). The filters run inside Embree's traversal on whatever thread
  * traces; they only read the scene (Embree's user pointer), and the mesh is
  * the hit's geometry ID (meshes are attached by their index). */
 #include "accel/alpha.h"
@@ -40,9 +41,12 @@ static void s_filter(const struct RTCFilterFunctionNArguments *args)
         const unsigned *hu = (const unsigned *)args->hit;
         unsigned n = args->N, prim = hu[5 * n + i], geom = hu[6 * n + i];
         const pf_mesh_t *mesh = &scene->meshes[geom];
+        uint32_t tex = mesh->alpha_tex ? mesh->alpha_tex : scene->mats[mesh->mat[prim]].alpha_tex;
+        if (!tex)
+            continue;
         float uv[2];
         pf_mesh_uv(mesh, prim, hf[3 * n + i], hf[4 * n + i], uv);
-        pf_vec3 c = pf_texture_eval(scene, mesh->alpha_tex, uv[0], uv[1]);
+        pf_vec3 c = pf_texture_eval(scene, tex, uv[0], uv[1]);
         float a = (c.x + c.y + c.z) * (1.0f / 3.0f); /* a float lookup of an RGB image: the mean, as pbrt-v4 */
         if (a >= 1.0f)
             continue;
@@ -54,7 +58,11 @@ static void s_filter(const struct RTCFilterFunctionNArguments *args)
 
 void pf_alpha_attach(RTCGeometry g, const pf_scene_t *scene, size_t m)
 {
-    if (!scene->meshes[m].alpha_tex)
+    const pf_mesh_t *mesh = &scene->meshes[m];
+    int any = mesh->alpha_tex != 0;
+    for (size_t t = 0; !any && t < mesh->ntris; t++)
+        any = scene->mats[mesh->mat[t]].alpha_tex != 0;
+    if (!any)
         return;
     rtcSetGeometryUserData(g, (void *)scene);
     rtcSetGeometryIntersectFilterFunction(g, s_filter);

@@ -9,7 +9,8 @@
 #include "scene/scene.h"
 
 /* Installs the filters on g, the geometry of mesh m of scene, when the
- * mesh has an alpha texture; nothing otherwise. */
+ * mesh, or a material of one of its triangles, has an alpha texture;
+ * nothing otherwise. */
 void pf_alpha_attach(RTCGeometry g, const pf_scene_t *scene, size_t m);
 
 #endif

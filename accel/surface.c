@@ -4,6 +4,7 @@
 
 #include <math.h>
 
+#include "base/hash.h"
 #include "scene/texture.h"
 
 void pf_hit_uv(const pf_scene_t *scene, const pf_hit_t *hit, float uv[2])
@@ -22,9 +23,43 @@ void pf_hit_uv(const pf_scene_t *scene, const pf_hit_t *hit, float uv[2])
     uv[1] = 1.0f - acosf(z) / PF_PI;
 }
 
+uint32_t pf_mix_choose(const pf_scene_t *scene, const pf_hit_t *hit, uint32_t mix)
+{
+    const pf_material_t *m = &scene->mats[mix];
+    float a = m->amount;
+    if (m->amount_tex) {
+        float uv[2];
+        pf_hit_uv(scene, hit, uv);
+        pf_vec3 c = pf_texture_eval(scene, m->amount_tex, uv[0], uv[1]);
+        a = (c.x + c.y + c.z) * (1.0f / 3.0f); /* a float lookup of an RGB texture: the mean, as pbrt-v4 */
+    }
+    if (!(a > 0.0f))
+        return m->mix[0];
+    if (a >= 1.0f)
+        return m->mix[1];
+    float f[4] = { hit->p.x, hit->p.y, hit->p.z, hit->t };
+    uint64_t h = pf_hash_bytes(0x6d6978ull + mix, f, sizeof f);
+    float u = (float)(h >> 40) * 0x1p-24f; /* [0, 1) */
+    return u < a ? m->mix[1] : m->mix[0];
+}
+
 pf_material_t pf_material_at(const pf_scene_t *scene, const pf_hit_t *hit)
 {
     pf_material_t m = scene->mats[hit->mat];
+    if (m.type == PF_MAT_MIX) {
+        uint32_t i = hit->mat;
+        /* finalize bounds the nesting (PF_MIX_MAX_DEPTH) and rules out cycles */
+        for (int d = 0; d <= PF_MIX_MAX_DEPTH && scene->mats[i].type == PF_MAT_MIX; d++)
+            i = pf_mix_choose(scene, hit, i);
+        pf_vec3 le = m.le;
+        m = scene->mats[i];
+        m.le = le;
+        if (m.type == PF_MAT_MIX) { /* unreachable after finalize: a black surface */
+            m.type = PF_MAT_DIFFUSE;
+            m.kd = m.ks = pf_v3s(0.0f);
+            m.kd_tex = 0;
+        }
+    }
     if (!m.kd_tex)
         return m;
     float uv[2];

@@ -15,7 +15,20 @@
 void pf_hit_uv(const pf_scene_t *scene, const pf_hit_t *hit, float uv[2]);
 
 /* A copy of the hit's material with its textured slots (kd, clamped to
- * [0, 1]) evaluated at the hit's uv; the material itself when it has none. */
+ * [0, 1]) evaluated at the hit's uv; the material itself when it has none.
+ * A MIX material is first resolved to one of its two (mixes of mixes all
+ * the way down), chosen by pf_mix_choose; the copy keeps the mix's own le,
+ * as the light table (light/) counts the hit material's emission. */
 pf_material_t pf_material_at(const pf_scene_t *scene, const pf_hit_t *hit);
+
+/* The index of the material MIX material `mix` stands for at the hit (one
+ * level): mix[1] with probability amount (its texture's mean channel at the
+ * hit's uv when textured; <= 0 always mix[0], >= 1 always mix[1]), drawn as
+ * pbrt-v4's MixMaterial draws it, from a hash of the hit: its point and its
+ * distance along the ray (so different rays to one point may choose
+ * differently) and the mix's index. No random stream is consumed, so the
+ * camera pass, the gather rays and the photons resolve a hit alike, on any
+ * thread or worker. */
+uint32_t pf_mix_choose(const pf_scene_t *scene, const pf_hit_t *hit, uint32_t mix);
 
 #endif

@@ -37,8 +37,18 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     for (size_t i = 0; i < scene->nmats; i++) {
         const pf_material_t *m = &scene->mats[i];
         PF_FUZZ_REQUIRE(memchr(m->name, 0, sizeof m->name) != NULL, "material %zu: name not terminated", i);
-        PF_FUZZ_REQUIRE(m->type == PF_MAT_DIFFUSE || m->type == PF_MAT_MIRROR || m->type == PF_MAT_GLASS,
+        PF_FUZZ_REQUIRE(m->type == PF_MAT_DIFFUSE || m->type == PF_MAT_MIRROR || m->type == PF_MAT_GLASS ||
+                            m->type == PF_MAT_CONDUCTOR || m->type == PF_MAT_COATED,
                         "material %zu: type %d", i, (int)m->type);
+        /* Pr / Pm: what finalize will ask of a conductor and a coat */
+        PF_FUZZ_REQUIRE(m->type != PF_MAT_CONDUCTOR || (m->alpha >= 0.0f && m->alpha <= 1.0f && m->eta.x > 0.0f &&
+                                                        m->k.x >= 0.0f && isfinite(m->k.x) && isfinite(m->k.y) &&
+                                                        isfinite(m->k.z)),
+                        "conductor '%s': alpha %g k %g", m->name, (double)m->alpha, (double)m->k.x);
+        PF_FUZZ_REQUIRE(m->type != PF_MAT_COATED || (m->alpha >= 0.0f && m->alpha <= 1.0f && m->ior >= 1.0f),
+                        "coated '%s': alpha %g ior %g", m->name, (double)m->alpha, (double)m->ior);
+        PF_FUZZ_REQUIRE(m->alpha_tex <= scene->ntexs, "material '%s': alpha texture %u of %zu", m->name,
+                        (unsigned)m->alpha_tex, scene->ntexs);
         PF_FUZZ_REQUIRE(s_finite3(m->kd) && s_finite3(m->ks) && s_finite3(m->kt) && s_finite3(m->le) &&
                             isfinite(m->ns) && isfinite(m->ior),
                         "material '%s' has a non-finite value", m->name);

@@ -4,7 +4,8 @@
  *   scene_json_read.c  the file's text, the node-to-line table, error
  *                      reports at file:line, and typed access to values;
  *   scene_json.c       the scene's sections and pf_scene_json_load;
- *   scene_json_env.c   the image-based infinite light.
+ *   scene_json_env.c   the image-based infinite light;
+ *   scene_json_mat.c   the diffusetransmission and mix materials.
  *
  * Nothing outside them includes this header; the public interface is
  * pf_scene_json_load in load.h. The types and the S_FAIL_ macros keep the
@@ -105,5 +106,14 @@ int pf_json_rgb(s_ctx_t *c, const cJSON *v, const char *key, const char *what, f
 
 /* An infinite light with "image": reads the map into the scene and fills *l. */
 int pf_json_envlight(s_ctx_t *c, const cJSON *o, pf_light_t *l);
+
+/* ---- scene_json_mat.c ---- */
+
+/* When type is "diffusetransmission" or "mix": 1, with mat's type and
+ * defaults set and *valid the kind's keys; 0 for any other type. */
+int pf_json_material_kind(const char *type, pf_material_t *mat, const char *const **valid);
+/* The kind's own keys (a mix's "materials" and "amount") and checks (kd +
+ * kt <= 1), once the shared keys are read into mat; nothing for the other kinds. */
+int pf_json_material_more(s_ctx_t *c, const cJSON *m, pf_material_t *mat);
 
 #endif

@@ -235,7 +235,7 @@ static int s_coated(s_ctx_t *c, const cJSON *m, pf_material_t *mat)
 static int s_material(s_ctx_t *c, const cJSON *m)
 {
     static const char *const keys[] = { "name", "type", "kd", "ks", "ns", "kt", "ior", "emission",
-                                        "eta", "k", "reflectance", "roughness", "thickness", NULL };
+                                        "eta", "k", "reflectance", "roughness", "thickness", "materials", "amount", NULL };
     const char *what = "material";
     int rc = pf_json_check_object(c, m, what, keys);
     const cJSON *vname = NULL, *v;
@@ -274,7 +274,7 @@ static int s_material(s_ctx_t *c, const cJSON *m)
         mat.kd = pf_v3s(0.0f);
         mat.ks = pf_v3s(1.0f);
         valid = mirror_keys;
-    } else if (strcmp(type, "glass") == 0) {
+    } else if (strcmp(type, "glass") == 0 || strcmp(type, "dielectric") == 0) {
         mat.type = PF_MAT_GLASS;
         mat.kd = pf_v3s(0.0f);
         mat.ks = pf_v3s(1.0f);
@@ -291,10 +291,10 @@ static int s_material(s_ctx_t *c, const cJSON *m)
     } else if (strcmp(type, "coated") == 0) {
         mat.type = PF_MAT_COATED;
         valid = coated_keys;
-    } else {
+    } else if (!pf_json_material_kind(type, &mat, &valid)) {
         return S_FAIL_AT(c, vtype,
-                         "unknown material type '%.64s' (expected diffuse, mirror, glass, thindielectric, conductor "
-                         "or coated)",
+                         "unknown material type '%.64s' (expected diffuse, mirror, glass or dielectric, "
+                         "thindielectric, conductor, coated, diffusetransmission or mix)",
                          type);
     }
     for (const cJSON *k = m->child; k; k = k->next) {
@@ -329,6 +329,8 @@ static int s_material(s_ctx_t *c, const cJSON *m)
     if (mat.type == PF_MAT_CONDUCTOR && (rc = s_conductor(c, m, &mat)))
         return rc;
     if ((mat.type == PF_MAT_COATED || mat.type == PF_MAT_GLASS) && (rc = s_coated(c, m, &mat)))
+        return rc;
+    if ((rc = pf_json_material_more(c, m, &mat)))
         return rc;
     /* A diffuse surface reflects kd + ks in total; more than 1 would create
      * energy and break the photon tracer's Russian roulette. */

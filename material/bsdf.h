@@ -38,10 +38,11 @@ pf_vec3 pf_brdf_eval(const pf_material_t *m, pf_vec3 n, pf_vec3 wi, pf_vec3 wo);
 /* True when the material has a Phong lobe. */
 static inline int pf_mat_glossy(const pf_material_t *m) { return m->type == PF_MAT_DIFFUSE && !pf_is_black(m->ks); }
 /* True when the material scatters diffusely or glossily (photons are stored there; a coated
- * surface always). */
+ * surface always; a diffuse transmitter that reflects or transmits). */
 static inline int pf_mat_nonspecular(const pf_material_t *m)
 {
-    return (m->type == PF_MAT_DIFFUSE && !(pf_is_black(m->kd) && pf_is_black(m->ks))) || m->type == PF_MAT_COATED;
+    return (m->type == PF_MAT_DIFFUSE && !(pf_is_black(m->kd) && pf_is_black(m->ks))) || m->type == PF_MAT_COATED ||
+           (m->type == PF_MAT_DIFFUSE_TRANSMISSION && !(pf_is_black(m->kd) && pf_is_black(m->kt)));
 }
 
 #endif

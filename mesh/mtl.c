@@ -24,6 +24,14 @@
  *                             else (1,1,1). `d` does not change kt.
  *   other values     DIFFUSE  as illum 2, with a warning.
  *
+ *   Pr / Pm (the PBR extension: roughness and metallic, each in [0, 1],
+ *   clamped with a warning) on illum absent or 0-2, when either is given:
+ *     Pm > 0.5       CONDUCTOR, reflectance Kd (pbrt's form: eta 1, k of Kd),
+ *                    alpha = Pr^2 (Pr absent: 0, a smooth metal)
+ *     Pm <= 0.5      COATED kd = Kd under a lossless coat of index Ni (1.5
+ *                    when absent or below 1), alpha = Pr^2 (Pr absent: 1)
+ *   alpha = roughness^2 as Disney's and glTF's roughness, which the
+ *   extension copies; Ks and Ns are not used then.
  *   Ke gives le (emitted radiance, one-sided) for every type.
  *   Defaults when absent: Kd 0.8 (pf_material_default), Ks 0, Ke 0, Ns 1.
  *   map_Kd file: the diffuse albedo from that image (replacing Kd; path
@@ -31,7 +39,10 @@
  *   -clamp on clamps; the others are skipped). The image is read when the
  *   statement is, and a bad one is an error naming it and this file's line
  *   (a missing one is a warning: Kd stands in).
- *   Other maps (map_Ks, map_Ns, map_d, map_Ka, bump, disp, decal, refl, norm,
+ *   map_d file (same options): an alpha cut-out of every triangle with this
+ *   material (alpha_tex; the image's mean channel, linear: below a
+ *   hash of the ray the hit is skipped, accel/alpha.c), any type.
+ *   Other maps (map_Ks, map_Ns, map_Ka, bump, disp, decal, refl, norm,
  *   ...) are not rendered: one warning per kind at the end, with the count and
  *   the first line. Ignored without a word: Ka, sharpness.
  *   Other statements are skipped with one warning per keyword.
@@ -62,10 +73,11 @@ typedef struct s_mtl {
     char name[PF_NAME_MAX];
     int line; /* of its newmtl statement */
     pf_vec3 kd, ks, ke, tf;
-    float ns, ni, d;
-    int has_kd, has_ks, has_ke, has_tf, has_ns, has_ni, has_d;
+    float ns, ni, d, pr, pm;
+    int has_kd, has_ks, has_ke, has_tf, has_ns, has_ni, has_d, has_pr, has_pm;
     int illum; /* -1 when absent */
     uint32_t kd_tex; /* map_Kd's texture ref, or 0 */
+    uint32_t d_tex;  /* map_d's texture ref, or 0 */
 } s_mtl_t;
 
 #define S_MAX_WARNED 32
@@ -162,6 +174,27 @@ static int s_color(s_ctx_t *c, const char *p, const char *kw, int clamp, pf_vec3
     return PF_OK;
 }
 
+/* The PBR extension's mapping (Pr, Pm; the table above) of s onto *m. */
+static void s_pbr(const s_mtl_t *s, pf_material_t *m)
+{
+    if (s->has_pm && s->pm > 0.5f) {
+        float r = s->has_pr ? s->pr : 0.0f;
+        m->type = PF_MAT_CONDUCTOR;
+        m->ks = m->kd;
+        m->eta = pf_v3s(1.0f);
+        m->k = pf_v3(pf_conductor_k_of_reflectance(m->kd.x), pf_conductor_k_of_reflectance(m->kd.y),
+                     pf_conductor_k_of_reflectance(m->kd.z));
+        m->alpha = r * r;
+        m->kd = pf_v3s(0.0f);
+        return;
+    }
+    float r = s->has_pr ? s->pr : 1.0f;
+    m->type = PF_MAT_COATED;
+    m->ior = (s->has_ni && s->ni >= 1.0f) ? s->ni : 1.5f;
+    m->alpha = r * r;
+    m->thickness = 0.0f;
+}
+
 /* Maps a collected material (see the table above) and keeps it for the commit. */
 static int s_finish(s_ctx_t *c, const s_mtl_t *s)
 {
@@ -179,6 +212,8 @@ static int s_finish(s_ctx_t *c, const s_mtl_t *s)
         m.ks = (s->has_ks && !pf_is_black(s->ks)) ? s->ks : ones;
         m.kt = s->has_tf ? s->tf : ones;
         m.ior = (s->has_ni && s->ni > 0.0f) ? s->ni : 1.5f;
+    } else if ((s->has_pr || s->has_pm) && illum <= 2) {
+        s_pbr(s, &m);
     } else {
         if (illum > 10) /* negative values were rejected while parsing */
             pf_warn("%s:%d: material '%s': unknown illum %d, treated as 2 (diffuse + Phong)", c->path, s->line,
@@ -201,8 +236,9 @@ static int s_finish(s_ctx_t *c, const s_mtl_t *s)
             pf_warn("%s:%d: material '%s': transparency (d %g) is ignored for illum 0-2; the surface is opaque",
                     c->path, s->line, s->name, s->d);
     }
-    if (s->kd_tex && m.type == PF_MAT_DIFFUSE)
+    if (s->kd_tex && (m.type == PF_MAT_DIFFUSE || m.type == PF_MAT_COATED))
         m.kd_tex = s->kd_tex;
+    m.alpha_tex = s->d_tex;
     if (pf_reserve((void **)&c->done, &c->cap_done, c->ndone + 1, sizeof *c->done))
         return pf_error_set(c->err, PF_ENOMEM, c->path, s->line, "out of memory");
     c->done[c->ndone++] = m;
@@ -281,8 +317,10 @@ static int s_map_option(const char *opt, size_t n)
     return -1;
 }
 
-/* map_Kd [options] file: reads the image into a scene texture. */
-static int s_map_kd(s_ctx_t *c, const char *p)
+/* map_Kd or map_d (kw) [options] file: reads the image into a scene
+ * texture (enc: how 8-bit values decode), its ref in *out; a missing image
+ * is a warning and leaves *out. */
+static int s_map_image(s_ctx_t *c, const char *p, const char *kw, pf_texenc enc, uint32_t *out)
 {
     pf_texture_t t = pf_texture_constant(c->cur.name, pf_v3s(0.0f));
     for (;;) {
@@ -294,7 +332,7 @@ static int s_map_kd(s_ctx_t *c, const char *p)
             p++;
         int nargs = s_map_option(opt, (size_t)(p - opt));
         if (nargs < 0)
-            return pf_error_set(c->err, PF_EPARSE, c->path, c->line, "map_Kd: unknown option '%.*s'",
+            return pf_error_set(c->err, PF_EPARSE, c->path, c->line, "%s: unknown option '%.*s'", kw,
                                 (int)(p - opt), opt);
         if ((size_t)(p - opt) == 6 && strncmp(opt, "-clamp", 6) == 0) {
             p = pf_text_skip_ws(p);
@@ -333,18 +371,18 @@ static int s_map_kd(s_ctx_t *c, const char *p)
     size_t n;
     p = pf_text_rest(p, &n);
     if (n == 0)
-        return pf_error_set(c->err, PF_EPARSE, c->path, c->line, "map_Kd needs a file name");
+        return pf_error_set(c->err, PF_EPARSE, c->path, c->line, "%s needs a file name", kw);
     char path[2048];
     const char *slash = strrchr(c->path, '/');
     int dirlen = slash && p[0] != '/' ? (int)(slash - c->path + 1) : 0;
     if (snprintf(path, sizeof path, "%.*s%.*s", dirlen, c->path, (int)n, p) >= (int)sizeof path)
-        return pf_error_set(c->err, PF_EPARSE, c->path, c->line, "map_Kd: path too long");
+        return pf_error_set(c->err, PF_EPARSE, c->path, c->line, "%s: path too long", kw);
     pf_error_t e = { { 0 } };
-    int ref = pf_texture_load_image(c->scene, path, &t, PF_TEXENC_DEFAULT, c->path, c->line, &e);
+    int ref = pf_texture_load_image(c->scene, path, &t, enc, c->path, c->line, &e);
     if (ref == PF_EIO) {
         /* A missing image, like a missing MTL file, is common in downloaded
          * models and not worth failing the scene over. */
-        pf_warn("%s; Kd stands in", e.msg);
+        pf_warn("%s; %s", e.msg, out == &c->cur.kd_tex ? "Kd stands in" : "the surface stays opaque");
         return PF_OK;
     }
     if (ref < 0) {
@@ -352,7 +390,7 @@ static int s_map_kd(s_ctx_t *c, const char *p)
             *c->err = e;
         return ref;
     }
-    c->cur.kd_tex = (uint32_t)ref;
+    *out = (uint32_t)ref;
     return PF_OK;
 }
 
@@ -365,10 +403,13 @@ static int s_statement(void *arg, const char *kw, int kwlen, const char *p)
 #define S_KW(s) (kwlen == (int)sizeof(s) - 1 && strncasecmp(kw, s, sizeof(s) - 1) == 0)
     if (S_KW("newmtl"))
         return s_newmtl(c, p);
-    if (S_KW("map_Kd")) {
+    if (S_KW("map_Kd") || S_KW("map_d")) {
+        int d = S_KW("map_d");
         if (!c->have)
-            return pf_error_set(c->err, PF_EPARSE, c->path, c->line, "map_Kd before any newmtl");
-        return s_map_kd(c, p);
+            return pf_error_set(c->err, PF_EPARSE, c->path, c->line, "%s before any newmtl", d ? "map_d" : "map_Kd");
+        /* an alpha mask is a number, not a colour: linear */
+        return d ? s_map_image(c, p, "map_d", PF_TEXENC_LINEAR, &cur->d_tex)
+                 : s_map_image(c, p, "map_Kd", PF_TEXENC_DEFAULT, &cur->kd_tex);
     }
     if ((kwlen > 4 && strncasecmp(kw, "map_", 4) == 0) || S_KW("bump") || S_KW("disp") || S_KW("decal") ||
         S_KW("refl") || S_KW("norm")) {
@@ -378,7 +419,7 @@ static int s_statement(void *arg, const char *kw, int kwlen, const char *p)
     if (S_KW("Ka") || S_KW("sharpness"))
         return PF_OK;
     int known = S_KW("Kd") || S_KW("Ks") || S_KW("Ke") || S_KW("Tf") || S_KW("Ns") || S_KW("Ni") || S_KW("d") ||
-                S_KW("Tr") || S_KW("illum");
+                S_KW("Tr") || S_KW("illum") || S_KW("Pr") || S_KW("Pm");
     if (!known) {
         pf_text_warn_keyword(&c->warned, c->path, c->line, kw, kwlen);
         return PF_OK;
@@ -411,6 +452,19 @@ static int s_statement(void *arg, const char *kw, int kwlen, const char *p)
         int rc = s_scalar(c, p, name, 0.0f, &cur->ni);
         cur->has_ni = cur->ni > 0.0f; /* Ni 0 means "unset" to many exporters */
         return rc;
+    }
+    if (S_KW("Pr") || S_KW("Pm")) {
+        float v;
+        int rc = s_scalar(c, p, name, 0.0f, &v);
+        if (rc)
+            return rc;
+        if (v > 1.0f) {
+            pf_warn("%s:%d: %s %g above 1 clamped to 1", c->path, c->line, name, v);
+            v = 1.0f;
+        }
+        *(S_KW("Pr") ? &cur->pr : &cur->pm) = v;
+        *(S_KW("Pr") ? &cur->has_pr : &cur->has_pm) = 1;
+        return PF_OK;
     }
     if (S_KW("d") || S_KW("Tr")) {
         float v;

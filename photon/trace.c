@@ -39,6 +39,7 @@
 #include "material/bsdf.h"
 #include "material/coated.h"
 #include "material/dielectric.h"
+#include "material/difftrans.h"
 #include "material/ggx.h"
 #include "photon/irradiance.h"
 
@@ -111,6 +112,26 @@ static int s_coated(const pf_material_t *m, pf_vec3 nf, pf_vec3 ns, pf_vec3 wi, 
     return 1;
 }
 
+/* A photon off a diffuse transmitter (stored there as at a diffuse
+ * surface, on the side it came from): reflected or transmitted as
+ * material/difftrans.h samples it, then Russian roulette on the weight.
+ * 0 when the photon ends here, or when the shading normal would send it
+ * to the other side of the geometry than the side it chose. */
+static int s_difftrans(const pf_material_t *m, pf_vec3 nf, pf_vec3 ns, pf_vec3 wi, float u0, float u1, float u2,
+                       float u3, pf_vec3 *wo, pf_vec3 *power)
+{
+    pf_vec3 w;
+    float pdf;
+    if (!pf_difftrans_sample(m, ns, wi, u0, u1, u2, wo, &w, &pdf) ||
+        (pf_dot(*wo, nf) > 0.0f) != (pf_dot(*wo, ns) > 0.0f))
+        return 0;
+    float p = fminf(1.0f, pf_maxc(w));
+    if (!(p > 0.0f) || u3 >= p)
+        return 0;
+    *power = pf_mul(*power, pf_scale(w, 1.0f / p));
+    return 1;
+}
+
 /* Traces photon `index` of the map (caustic or global) into buf. Returns the
  * number of photons rejected for bad power (0 or 1), or PF_ENOMEM. */
 static int s_trace(const s_ctx *c, uint64_t seed, uint64_t index, uint64_t emitted, int caustic, s_buf *buf)
@@ -142,7 +163,7 @@ static int s_trace(const s_ctx *c, uint64_t seed, uint64_t index, uint64_t emitt
         pf_vec3 ns = pf_dot(hit.ng, nf) > 0.0f ? hit.ns : pf_neg(hit.ns);
         pf_vec3 wo;
         float u0 = pf_rng_float(&rng), u1 = pf_rng_float(&rng), u2 = pf_rng_float(&rng);
-        if (m->type == PF_MAT_DIFFUSE || m->type == PF_MAT_COATED) {
+        if (m->type == PF_MAT_DIFFUSE || m->type == PF_MAT_COATED || pf_mat_difftrans(m)) {
             if (!pf_mat_nonspecular(m))
                 return 0;
             if (!caustic || (bounce > 0 && specular_only)) {
@@ -159,7 +180,10 @@ static int s_trace(const s_ctx *c, uint64_t seed, uint64_t index, uint64_t emitt
                 pd /= sum;
                 ps /= sum;
             }
-            if (m->type == PF_MAT_COATED) {
+            if (pf_mat_difftrans(m)) {
+                if (!s_difftrans(m, nf, ns, wi, u0, u1, u2, pf_rng_float(&rng), &wo, &power))
+                    return 0;
+            } else if (m->type == PF_MAT_COATED) {
                 if (!s_coated(m, nf, ns, wi, u0, u1, u2, pf_rng_float(&rng), &wo, &power))
                     return 0;
             } else if (u0 < pd) {
@@ -176,7 +200,7 @@ static int s_trace(const s_ctx *c, uint64_t seed, uint64_t index, uint64_t emitt
             } else {
                 return 0; /* absorbed */
             }
-            if (pf_dot(wo, nf) <= 0.0f)
+            if (pf_dot(wo, nf) <= 0.0f && !pf_mat_difftrans(m))
                 return 0; /* the shading normal sent it below the surface */
             specular_only = 0;
         } else if (m->type == PF_MAT_MIRROR) {

@@ -11,7 +11,9 @@
  *   u32 nmats,    nmats x   { str name, u8 type, vec3 kd, vec3 ks, f32 ns, vec3 kt, f32 ior, vec3 le,
  *                             vec3 eta, vec3 k, f32 alpha, f32 thickness, u32 kd_tex }   (version 4: eta,
  *                             k, alpha; version 5: type 4, the thin dielectric; version 7: type 5, the
- *                             coated diffuse, thickness and kd_tex)
+ *                             coated diffuse, thickness and kd_tex; version 9: types 6 and 7, diffuse
+ *                             transmission and mix, and after kd_tex: u32 mix0, u32 mix1, f32 amount,
+ *                             u32 amount_tex, u32 alpha_tex)
  *   u32 nmeshes,  nmeshes x { str name, u64 nverts, u64 ntris, u8 has_normals, u8 has_uv, u32 alpha_tex,
  *                             nverts x vec3 pos, (has_normals) nverts x vec3 nrm,
  *                             (has_uv) nverts x 2 f32 uv, ntris x 3 u32 idx, ntris x u32 mat }
@@ -50,7 +52,7 @@
 #define S_WHERE "scene blob"
 
 /* The smallest encoded size of each repeated item, for the count checks. */
-#define S_MIN_MATERIAL (2 + 1 + 23 * 4 + 4)
+#define S_MIN_MATERIAL (2 + 1 + 23 * 4 + 4 + 5 * 4)
 #define S_MIN_MESH (2 + 8 + 8 + 2 + 4)
 #define S_MIN_TEXTURE (2 + 1 + 4 * 4 + 3 * 16 + 2 + 4 + 2 + 8)
 #define S_VERTEX 12
@@ -152,6 +154,11 @@ int pf_sceneblob_write(const pf_scene_t *scene, pf_buf_t *out)
         W(pf_wr_f32(out, m->alpha));
         W(pf_wr_f32(out, m->thickness));
         W(pf_wr_u32(out, m->kd_tex));
+        W(pf_wr_u32(out, m->mix[0]));
+        W(pf_wr_u32(out, m->mix[1]));
+        W(pf_wr_f32(out, m->amount));
+        W(pf_wr_u32(out, m->amount_tex));
+        W(pf_wr_u32(out, m->alpha_tex));
     }
 
     W(pf_wr_u32(out, (uint32_t)scene->nmeshes));
@@ -377,6 +384,11 @@ static void s_read_materials(s_in_t *in, pf_scene_t *scene)
         m.alpha = s_f32(in, what, "alpha");
         m.thickness = s_f32(in, what, "thickness");
         m.kd_tex = s_u32(in, what, "kd_tex"); /* checked against the textures by finalize */
+        m.mix[0] = s_u32(in, what, "mix0"); /* these four, too, by finalize */
+        m.mix[1] = s_u32(in, what, "mix1");
+        m.amount = s_f32(in, what, "amount");
+        m.amount_tex = s_u32(in, what, "amount_tex");
+        m.alpha_tex = s_u32(in, what, "alpha_tex");
         if (!in->status && m.type == PF_MAT_CONDUCTOR &&
             !(m.eta.x > 0.0f && m.eta.y > 0.0f && m.eta.z > 0.0f && m.k.x >= 0.0f && m.k.y >= 0.0f &&
               m.k.z >= 0.0f && m.alpha >= 0.0f && m.alpha <= 1.0f))

@@ -98,8 +98,10 @@
 #include "material/bsdf.h"
 #include "material/coated.h"
 #include "material/dielectric.h"
+#include "material/difftrans.h"
 #include "material/ggx.h"
 #include "photon/irrtex.h"
+#include "render/direct_impl.h"
 #include "render/filter_impl.h"
 #include "render/pixel_impl.h"
 
@@ -134,7 +136,7 @@ typedef struct s_state {
     float mis_pdf;
     int mis_nl;
     /* The gather under way at a diffuse point weighs the sky its rays see
-     * directly by MIS against that point's light samples (s_sky_mis_n):
+     * directly by MIS against that point's light samples (pf_direct_sky_mis):
      * sky_ng rays about sky_ns (0: the sky seen counts nothing). */
     int sky_ng;
     pf_vec3 sky_ns;
@@ -163,91 +165,6 @@ static pf_vec3 s_caustic(s_state *st, pf_vec3 p, pf_vec3 nf)
 
 static inline float s_u(s_state *st) { return pf_rng_float(&st->rng); }
 
-/* Shadow test between a hit and the light point at distance dist along wi.
- * The ray leaves from the offset origin aimed at the light point itself (the
- * offset moves the origin off the line from the hit point), and stops short
- * of it by more than that point's rounding, so the emitter never occludes
- * itself, at any scale or distance from the origin. A distant light's
- * dist is INFINITY: the ray must escape. */
-static int s_visible(const pf_accel_t *accel, const pf_hit_t *h, pf_vec3 wi, float dist)
-{
-    if (isinf(dist)) { /* a distant light: nothing may lie ahead */
-        pf_ray_t r = pf_spawn_ray(h, wi);
-        return !pf_accel_occluded(accel, &r, INFINITY);
-    }
-    pf_vec3 target = pf_madd(h->p, wi, dist);
-    pf_ray_t r = pf_spawn_ray(h, wi);
-    pf_vec3 d = pf_sub(target, r.o);
-    float len = pf_len(d);
-    if (!(len > 0.0f))
-        return 1;
-    r.d = pf_scale(d, 1.0f / len);
-    float slack = 0x1p-18f * pf_maxc(pf_vabs(target)) + pf_accel_eps(accel) + 1e-4f * len;
-    return len <= slack || !pf_accel_occluded(accel, &r, len - slack);
-}
-
-static float s_power(float na, float a, float nb, float b);
-
-/* One light connection's radiance towards wo at a non-specular hit: f cos
- * Le / pdf, zero when occluded. A rough conductor's, and a rough coat's
- * lobe, are weighted by MIS against its BSDF ray when `recurse` says that ray
- * is traced (nl light samples against one); the base is light sampling's
- * alone, and so is a delta light (pdf 0). At a diffuse point whose ng > 0
- * cosine-distributed gather rays count the sky they see (s_sky_mis_n), a sky
- * sample is weighted by MIS against them. */
-static pf_vec3 s_connect(const s_state *st, const pf_hit_t *h, const pf_material_t *m, pf_vec3 nf, pf_vec3 ns,
-                         pf_vec3 wo, const pf_light_conn_t *lc, int nl, int recurse, int ng)
-{
-    const pf_render_ctx_t *c = st->ctx;
-    float cos_x = pf_dot(lc->wi, ns);
-    if (cos_x <= 0.0f || pf_dot(lc->wi, nf) <= 0.0f)
-        return pf_v3s(0.0f);
-    int mis = recurse && lc->pdf > 0.0f;
-    pf_vec3 f;
-    float w = 1.0f;
-    if (m->type == PF_MAT_CONDUCTOR) {
-        f = pf_conductor_eval(m, ns, wo, lc->wi);
-        if (mis)
-            w = s_power((float)nl, lc->pdf, 1.0f, pf_conductor_pdf(m, ns, wo, lc->wi));
-    } else {
-        f = pf_brdf_eval(m, ns, lc->wi, wo);
-        if (ng > 0 && isinf(lc->dist) && lc->pdf > 0.0f) /* the sky, against ng gather rays */
-            w = s_power((float)nl, lc->pdf, (float)ng, cos_x * PF_INV_PI);
-        if (pf_mat_coated(m)) {
-            pf_coated_f_t cf = pf_coated_eval(m, ns, wo, lc->wi);
-            float wc = mis ? s_power((float)nl, lc->pdf, 1.0f, cf.coat_pdf) : 1.0f;
-            f = pf_add(cf.base, pf_v3s(cf.coat * wc));
-        }
-    }
-    if (pf_is_black(f) || !s_visible(c->accel, h, lc->wi, lc->dist))
-        return pf_v3s(0.0f);
-    return pf_scale(pf_mul(f, lc->weight), cos_x * w);
-}
-
-/* Direct light at a non-specular hit: light_samples shadow rays to emitters
- * chosen by power, and one to each distant light (see s_connect for MIS and
- * ng). */
-static pf_vec3 s_direct(s_state *st, const pf_hit_t *h, const pf_material_t *m, pf_vec3 nf, pf_vec3 ns, pf_vec3 wo,
-                        int recurse, int ng)
-{
-    const pf_render_ctx_t *c = st->ctx;
-    int n = c->settings.light_samples > 0 ? c->settings.light_samples : 1;
-    pf_vec3 sum = pf_v3s(0.0f);
-    for (int i = 0; i < n; i++) {
-        float u[3] = { s_u(st), s_u(st), s_u(st) };
-        pf_light_conn_t lc;
-        if (pf_lights_sample_direct_at(c->lights, c->scene, h->p, ns, u, &lc))
-            sum = pf_add(sum, s_connect(st, h, m, nf, ns, wo, &lc, n, recurse, ng));
-    }
-    sum = pf_scale(sum, 1.0f / (float)n);
-    for (size_t i = 0; i < pf_lights_distant_count(c->lights); i++) {
-        pf_light_conn_t lc;
-        pf_lights_distant(c->lights, c->scene, i, &lc);
-        sum = pf_add(sum, s_connect(st, h, m, nf, ns, wo, &lc, n, recurse, 0));
-    }
-    return sum;
-}
-
 /* Where a gather ray ends: its radiance, or, at a diffuse surface read
  * through the irradiance lookup, that lookup still to make (its texel's
  * cache line asked for where it has one; s_gather_end_value makes it): the
@@ -271,36 +188,12 @@ static pf_dielectric_t s_glass(s_state *st, const pf_material_t *m, pf_vec3 d, p
     return pf_dielectric_rough_at(m, d, ng, wo, ns, u1, u2);
 }
 
-/* The sky a gather ray sees straight from its diffuse point, weighted by MIS
- * against that point's light samples (st->sky_*; s_connect's other half). */
-static pf_vec3 s_gather_sky(const s_state *st, pf_vec3 d)
-{
-    const pf_render_ctx_t *c = st->ctx;
-    pf_vec3 sky = pf_lights_sky(c->lights, d);
-    float cos = pf_dot(d, st->sky_ns);
-    if (pf_is_black(sky) || !(cos > 0.0f))
-        return pf_v3s(0.0f);
-    int nl = c->settings.light_samples > 0 ? c->settings.light_samples : 1;
-    float pl = pf_lights_sky_pdf(c->lights, st->sky_ns, d);
-    return pf_scale(sky, s_power((float)st->sky_ng, cos * PF_INV_PI, (float)nl, pl));
-}
-
-/* The gather rays at a diffuse point of material m that count the sky they
- * see directly (MIS against its light samples): its ng rays when the point
- * is plainly diffuse and both direct light and the gather are rendered,
- * else 0 (the sky is light sampling's alone). */
-static int s_sky_mis_n(const s_state *st, const pf_material_t *m, int ng)
-{
-    unsigned both = PF_TERM_DIRECT | PF_TERM_INDIRECT;
-    return m->type == PF_MAT_DIFFUSE && (st->ctx->terms & both) == both ? ng : 0;
-}
-
 /* Traces a final-gather ray to its end: mirrors and glass (solid or thin)
  * on the way are followed (one branch chosen by Fresnel); at the first
  * non-specular surface
  * the radiance it leaves towards the ray's origin, from the global map
  * (emission not counted); the sky seen straight from the point, as
- * s_gather_sky weighs it (when st->sky_ng says so). */
+ * pf_direct_gather_sky weighs it (when st->sky_ng says so). */
 static void s_gather_trace(s_state *st, pf_ray_t ray, s_gather_end *end)
 {
     const pf_render_ctx_t *c = st->ctx;
@@ -312,7 +205,7 @@ static void s_gather_trace(s_state *st, pf_ray_t ray, s_gather_end *end)
         pf_hit_t h;
         if (!pf_accel_intersect(c->accel, &ray, INFINITY, &h)) {
             if (depth == 0 && st->sky_ng > 0)
-                end->value = s_gather_sky(st, ray.d);
+                end->value = pf_direct_gather_sky(c, st->sky_ns, st->sky_ng, ray.d);
             return;
         }
         pf_material_t mt = pf_material_at(c->scene, &h);
@@ -320,9 +213,17 @@ static void s_gather_trace(s_state *st, pf_ray_t ray, s_gather_end *end)
         pf_vec3 wo = pf_neg(ray.d);
         pf_vec3 nf = pf_face_forward(h.ng, wo);
         pf_vec3 ns = pf_dot(h.ng, nf) > 0.0f ? h.ns : pf_neg(h.ns);
-        if (m->type == PF_MAT_DIFFUSE || pf_mat_coated(m)) {
+        if (m->type == PF_MAT_DIFFUSE || pf_mat_coated(m) || pf_mat_difftrans(m)) {
             if (!pf_mat_nonspecular(m))
                 return;
+            if (pf_mat_difftrans(m)) { /* both sides' irradiance, by the direct lookup */
+                const pf_photon_maps_t *pm = c->maps;
+                pf_vec3 ef = pf_irradiance_lookup(pm->irradiance, pm->irradiance_r2, c->accel, h.p, nf);
+                pf_vec3 eb = pf_irradiance_lookup(pm->irradiance, pm->irradiance_r2, c->accel, h.p, pf_neg(nf));
+                pf_vec3 l = pf_scale(pf_add(pf_mul(m->kd, ef), pf_mul(m->kt, eb)), PF_INV_PI);
+                end->value = pf_mul(thr, l);
+                return;
+            }
             if (pf_mat_glossy(m)) {
                 pf_vec3 l = pf_pm_radiance(c->maps->global, m, h.p, nf, wo, c->settings.global_k,
                                            c->maps->global_r2, c->shrink2, &st->scratch);
@@ -409,7 +310,7 @@ static void s_defer_flush(const s_state *st, s_defer *d)
 /* The final gather at a diffuse hit: adds to *sum the radiances of n
  * cosine-distributed gather rays (their mean times kd is the reflected
  * radiance: f cos / pdf = kd), each as s_gather_add; sky: whether they count
- * the sky they see (s_sky_mis_n's answer, n or 0). */
+ * the sky they see (pf_direct_sky_mis's answer, n or 0). */
 static void s_gather_sum(s_state *st, const pf_hit_t *h, pf_vec3 nf, pf_vec3 ns, int n, int sky, s_defer *d,
                          pf_vec3 *sum)
 {
@@ -463,13 +364,6 @@ static pf_vec3 s_first_gather(s_state *st, const pf_hit_t *h, pf_vec3 nf, pf_vec
 
 static pf_vec3 s_radiance(s_state *st, pf_ray_t ray, int depth, pf_vec3 thr, int count_le, int primary);
 
-/* The power heuristic's weight of a sample of pdf a (taken na times) against
- * the other strategy's pdf b (taken nb times). */
-static float s_power(float na, float a, float nb, float b)
-{
-    float x = na * a, y = nb * b;
-    return x * x / (x * x + y * y);
-}
 
 /* A rough conductor as x: direct light by multiple importance sampling of
  * light_samples light samples and one BSDF sample, which is also the path's
@@ -481,7 +375,7 @@ static pf_vec3 s_rough(s_state *st, const pf_hit_t *h, const pf_material_t *m, p
     const pf_render_ctx_t *c = st->ctx;
     int recurse = depth < c->settings.max_depth;
     int n = c->settings.light_samples > 0 ? c->settings.light_samples : 1;
-    pf_vec3 L = (c->terms & PF_TERM_DIRECT) ? s_direct(st, h, m, nf, ns, wo, recurse, 0) : pf_v3s(0.0f);
+    pf_vec3 L = (c->terms & PF_TERM_DIRECT) ? pf_direct_light(c, &st->rng, h, m, nf, ns, wo, recurse, 0) : pf_v3s(0.0f);
     pf_vec3 wi, wgt;
     float pdf, u1 = recurse ? s_u(st) : 0.0f, u2 = recurse ? s_u(st) : 0.0f;
     if (!recurse || !pf_conductor_sample(m, ns, wo, u1, u2, &wi, &wgt, &pdf) || pf_dot(wi, nf) <= 0.0f)
@@ -496,7 +390,7 @@ static pf_vec3 s_rough(s_state *st, const pf_hit_t *h, const pf_material_t *m, p
 
 /* The coat lobe of a coated x: its one recursive ray. A rough coat's is
  * sampled from the visible normals, and the emitter it hits directly
- * counts with its MIS weight against s_direct's light samples (count_le 2);
+ * counts with its MIS weight against pf_direct_light's light samples (count_le 2);
  * a smooth coat's is the mirror, which light sampling never sees, so what
  * it meets counts whole (count_le 1, as a mirror's). The base is x's
  * direct light, caustics and final gather (scaled by pf_coated_kd). */
@@ -533,7 +427,7 @@ static pf_vec3 s_emitted(const s_state *st, const pf_hit_t *h, const pf_material
         return m->le;
     /* x's light sampling would have chosen this point with that pdf */
     float pl = pf_lights_pdf(c->lights, c->scene, st->mis_x, h->geom, h->prim, h->p);
-    return pf_scale(m->le, s_power(1.0f, st->mis_pdf, (float)st->mis_nl, pl));
+    return pf_scale(m->le, pf_mis_power(1.0f, st->mis_pdf, (float)st->mis_nl, pl));
 }
 
 /* The sky a camera path sees when it escapes along d, as count_le counts it
@@ -547,7 +441,35 @@ static pf_vec3 s_sky(const s_state *st, pf_vec3 d, int count_le)
     if (count_le == 1)
         return sky;
     float pl = pf_lights_sky_pdf(c->lights, st->mis_n, d);
-    return pf_scale(sky, s_power(1.0f, st->mis_pdf, (float)st->mis_nl, pl));
+    return pf_scale(sky, pf_mis_power(1.0f, st->mis_pdf, (float)st->mis_nl, pl));
+}
+
+/* The light a diffuse transmitter x passes from its far side (-nf), as
+ * the D rows take it on the near side: kt times the caustic irradiance and
+ * the final gather there (its direct light is pf_direct_light's); with the
+ * photon-map view, the global map's estimate there. Not filtered: the
+ * first-gather records serve the near side. */
+static pf_vec3 s_transmitted(s_state *st, const pf_hit_t *h, const pf_material_t *m, pf_vec3 nf, pf_vec3 ns,
+                             pf_vec3 thr)
+{
+    const pf_render_ctx_t *c = st->ctx;
+    pf_vec3 bf = pf_neg(nf), bs = pf_neg(ns), e = pf_v3s(0.0f);
+    if (pf_is_black(m->kt))
+        return e;
+    if (c->terms & PF_TERM_PHOTONMAP)
+        return pf_scale(pf_mul(m->kt, pf_pm_irradiance(c->maps->global, h->p, bf, c->settings.global_k,
+                                                       c->maps->global_r2, &st->scratch, NULL)),
+                        PF_INV_PI);
+    if (c->terms & PF_TERM_CAUSTIC)
+        e = pf_scale(s_caustic(st, h->p, bf), PF_INV_PI);
+    /* The near side's first gather is shared over (2 g + 1)^2 pixels when
+     * filtering; the far side's is not, so it takes 2 g + 1 times the rays
+     * to keep its noise nearer the near side's. */
+    int n = (int)ceilf((float)c->settings.gather * fminf(1.0f, pf_maxc(thr)));
+    n *= st->filtering ? 2 * c->settings.gather_filter + 1 : 1;
+    if ((c->terms & PF_TERM_INDIRECT) && n > 0)
+        e = pf_add(e, s_gather_mean(st, h, bf, bs, n, 0));
+    return pf_mul(m->kt, e);
 }
 
 /* Radiance along a camera path. thr is the path's throughput so far (to size
@@ -570,7 +492,7 @@ static pf_vec3 s_radiance(s_state *st, pf_ray_t ray, int depth, pf_vec3 thr, int
     if (pf_mat_rough(m))
         return pf_add(L, s_rough(st, &h, m, nf, ns, wo, depth, thr));
 
-    if (m->type == PF_MAT_DIFFUSE || pf_mat_coated(m)) {
+    if (m->type == PF_MAT_DIFFUSE || pf_mat_coated(m) || pf_mat_difftrans(m)) {
         if (!pf_mat_nonspecular(m))
             return L;
         pf_vec3 kd = pf_mat_coated(m) ? pf_coated_kd(m, pf_dot(wo, ns), 0) : m->kd;
@@ -579,6 +501,8 @@ static pf_vec3 s_radiance(s_state *st, pf_ray_t ray, int depth, pf_vec3 thr, int
              * precomputed points, which a scene without indirect light lacks. */
             pf_vec3 e = pf_pm_irradiance(c->maps->global, h.p, nf, c->settings.global_k, c->maps->global_r2,
                                          &st->scratch, NULL);
+            if (pf_mat_difftrans(m))
+                L = pf_add(L, s_transmitted(st, &h, m, nf, ns, thr));
             return pf_add(L, pf_scale(pf_mul(kd, e), PF_INV_PI));
         }
         /* the gather's rays: the filtered first gather's count, else fewer
@@ -586,9 +510,9 @@ static pf_vec3 s_radiance(s_state *st, pf_ray_t ray, int depth, pf_vec3 thr, int
         int filtered = primary && st->filtering;
         int ng = (int)ceilf((float)c->settings.gather * fminf(1.0f, pf_maxc(thr)));
         ng = !(c->terms & PF_TERM_INDIRECT) || pf_is_black(kd) ? 0 : filtered ? c->settings.gather : ng;
-        int sky = s_sky_mis_n(st, m, ng);
+        int sky = pf_direct_sky_mis(c, m, ng);
         if (c->terms & PF_TERM_DIRECT)
-            L = pf_add(L, s_direct(st, &h, m, nf, ns, wo, depth < c->settings.max_depth, sky));
+            L = pf_add(L, pf_direct_light(c, &st->rng, &h, m, nf, ns, wo, depth < c->settings.max_depth, sky));
         if (!pf_is_black(kd)) {
             if (c->terms & PF_TERM_CAUSTIC) {
                 pf_vec3 e = s_caustic(st, h.p, nf);
@@ -601,6 +525,8 @@ static pf_vec3 s_radiance(s_state *st, pf_ray_t ray, int depth, pf_vec3 thr, int
         }
         if (pf_mat_coated(m))
             L = pf_add(L, s_coat(st, &h, m, nf, ns, wo, depth, thr));
+        if (pf_mat_difftrans(m) && !(c->terms & PF_TERM_PHOTONMAP))
+            L = pf_add(L, s_transmitted(st, &h, m, nf, ns, thr));
         if (pf_mat_glossy(m) && depth < c->settings.max_depth) {
             pf_vec3 r = pf_reflect(wo, ns);
             pf_vec3 wi = pf_to_world(pf_sample_phong(s_u(st), s_u(st), m->ns), r);
@@ -706,7 +632,7 @@ static const pf_material_t *s_primary_hit(const pf_render_ctx_t *c, pf_ray_t ray
         pf_vec3 wo = pf_neg(ray.d);
         *nf = pf_face_forward(h->ng, wo);
         *ns = pf_dot(h->ng, *nf) > 0.0f ? h->ns : pf_neg(h->ns);
-        if (m->type == PF_MAT_DIFFUSE || pf_mat_coated(m))
+        if (m->type == PF_MAT_DIFFUSE || pf_mat_coated(m) || pf_mat_difftrans(m))
             return pf_mat_nonspecular(m) && !pf_is_black(m->kd) ? &c->scene->mats[h->mat] : NULL;
         if (depth >= c->settings.max_depth)
             return NULL;
@@ -799,7 +725,7 @@ static void s_record_pixel(s_state *st, const pf_pattern_t *pt, int px, int py, 
         }
         sums[nb] = pf_v3s(0.0f);
         owner[nb] = k;
-        int sky = (c->terms & PF_TERM_INDIRECT) ? s_sky_mis_n(st, m, c->settings.gather) : 0;
+        int sky = (c->terms & PF_TERM_INDIRECT) ? pf_direct_sky_mis(c, m, c->settings.gather) : 0;
         s_first_gather_sum(st, &h, nf, ns, sky, &d, &sums[nb++]);
         if (nb == S_DEFER_MAX || c->reads_at_once)
             nb = s_record_flush(st, &d, sums, owner, nb, rec);

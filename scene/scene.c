@@ -301,7 +301,37 @@ static int s_mat_finite(const pf_material_t *m)
 {
     return pf_is_finite3(m->kd) && pf_is_finite3(m->ks) && pf_is_finite3(m->kt) && pf_is_finite3(m->le) &&
            isfinite(m->ns) && isfinite(m->ior) && pf_is_finite3(m->eta) && pf_is_finite3(m->k) && isfinite(m->alpha) &&
-           isfinite(m->thickness);
+           isfinite(m->thickness) && isfinite(m->amount);
+}
+
+/* Checks a MIX material's two indices and that following mixes from it
+ * ends, within PF_MIX_MAX_DEPTH, at materials that are not mixes (no cycle). */
+static int s_check_mix(const pf_scene_t *self, size_t i, const char *file, pf_error_t *err)
+{
+    const pf_material_t *m = &self->mats[i];
+    if (m->mix[0] >= self->nmats || m->mix[1] >= self->nmats)
+        return pf_error_set(err, PF_EPARSE, file, 0, "material '%s': mix of materials %u and %u, out of range (%zu)",
+                            m->name, (unsigned)m->mix[0], (unsigned)m->mix[1], self->nmats);
+    /* Depth-first over the mix tree, at most 2^depth leaves; a cycle shows as depth running out. */
+    uint32_t stack[2 * PF_MIX_MAX_DEPTH + 2];
+    int depth[2 * PF_MIX_MAX_DEPTH + 2], n = 0;
+    stack[n] = (uint32_t)i;
+    depth[n++] = 0;
+    while (n > 0) {
+        n--;
+        const pf_material_t *x = &self->mats[stack[n]];
+        int d = depth[n];
+        if (x->type != PF_MAT_MIX)
+            continue;
+        if (d >= PF_MIX_MAX_DEPTH || x->mix[0] >= self->nmats || x->mix[1] >= self->nmats)
+            return pf_error_set(err, PF_EPARSE, file, 0,
+                                "material '%s': mixes nest deeper than %d or form a cycle", m->name, PF_MIX_MAX_DEPTH);
+        for (int k = 0; k < 2; k++) {
+            stack[n] = x->mix[k];
+            depth[n++] = d + 1;
+        }
+    }
+    return PF_OK;
 }
 
 /* Removes triangles that cannot be rendered: zero area, an area whose square
@@ -378,10 +408,14 @@ static int s_check_textures(pf_scene_t *self, pf_error_t *err)
             if (!isfinite(t->pxf[k]))
                 t->pxf[k] = 0.0f;
     }
-    for (size_t i = 0; i < self->nmats; i++)
-        if (self->mats[i].kd_tex > self->ntexs)
+    for (size_t i = 0; i < self->nmats; i++) {
+        const pf_material_t *m = &self->mats[i];
+        if (m->kd_tex > self->ntexs || m->amount_tex > self->ntexs || m->alpha_tex > self->ntexs)
             return pf_error_set(err, PF_EPARSE, file, 0, "material '%s': texture %u out of range (%zu textures)",
-                                self->mats[i].name, (unsigned)self->mats[i].kd_tex, self->ntexs);
+                                m->name, (unsigned)(m->kd_tex > self->ntexs ? m->kd_tex : m->amount_tex > self->ntexs
+                                                                                ? m->amount_tex : m->alpha_tex),
+                                self->ntexs);
+    }
     for (size_t m = 0; m < self->nmeshes; m++) {
         pf_mesh_t *mesh = &self->meshes[m];
         if (mesh->alpha_tex > self->ntexs)
@@ -459,6 +493,18 @@ int pf_scene_finalize(pf_scene_t *self, pf_error_t *err)
                                 "material '%s': coated needs ior >= 1, roughness in [0, 1], thickness >= 0 and "
                                 "reflectance in [0, 1]",
                                 m->name);
+        if (m->type == PF_MAT_DIFFUSE_TRANSMISSION &&
+            !(m->kd.x >= 0.0f && m->kd.y >= 0.0f && m->kd.z >= 0.0f && m->kt.x >= 0.0f && m->kt.y >= 0.0f &&
+              m->kt.z >= 0.0f && pf_maxc(pf_add(m->kd, m->kt)) <= 1.0f))
+            return pf_error_set(err, PF_EPARSE, file, 0,
+                                "material '%s': diffuse transmission needs reflectance, transmittance >= 0 and "
+                                "their sum <= 1",
+                                m->name);
+        if (m->type == PF_MAT_MIX) {
+            int mrc = s_check_mix(self, i, file, err);
+            if (mrc)
+                return mrc;
+        }
         if (m->type > PF_MAT_LAST)
             return pf_error_set(err, PF_EPARSE, file, 0, "material '%s': unknown type %d", m->name, (int)m->type);
     }

@@ -24,8 +24,15 @@ typedef enum {
                                  * passes 1 - R' unbent tinted kt, alike from both sides (pbrt-v4 thindielectric) */
     PF_MAT_COATED = 5, /* Lambertian kd under a dielectric coat of index ior, GGX roughness alpha (0: smooth)
                         * and thickness (pbrt-v4 coateddiffuse; material/coated.h) */
+    PF_MAT_DIFFUSE_TRANSMISSION = 6, /* Lambertian reflection kd on the side light comes from and Lambertian
+                                      * transmission kt to the other, alike from both sides (pbrt-v4
+                                      * diffusetransmission; material/difftrans.h) */
+    PF_MAT_MIX = 7, /* one of two materials, mix[1] with probability amount (or amount_tex), chosen at each hit
+                     * by a hash of the hit (pbrt-v4 mix; accel/surface.c); its own le only */
 } pf_mat_type;
-#define PF_MAT_LAST PF_MAT_COATED
+#define PF_MAT_LAST PF_MAT_MIX
+/* How deep MIX materials may nest (a mix of mixes); finalize rejects deeper chains and cycles. */
+#define PF_MIX_MAX_DEPTH 8
 
 #define PF_NAME_MAX 64
 
@@ -44,6 +51,11 @@ typedef struct pf_material {
                       * (pbrt-v4's layered BSDF, default 0.01 there); 0: lossless */
     pf_vec3 le;  /* emitted radiance, one-sided */
     uint32_t kd_tex; /* 1 + index into pf_scene_t.texs: kd is that texture at the hit's uv; 0: kd as is */
+    uint32_t mix[2];     /* MIX: the two materials' indices into pf_scene_t.mats */
+    float amount;        /* MIX: the probability of mix[1] (pbrt's amount; <= 0: mix[0], >= 1: mix[1]) */
+    uint32_t amount_tex; /* MIX: 1 + texture index: amount is that texture's mean channel at the hit; 0: amount */
+    uint32_t alpha_tex;  /* 1 + texture index: an alpha cut-out of every triangle with this material (MTL map_d;
+                          * accel/alpha.c), where its mesh has none of its own; 0: opaque */
 } pf_material_t;
 
 /* pbrt-v4's "reflectance" form of a conductor: eta = 1 and this k, which

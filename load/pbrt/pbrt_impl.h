@@ -126,6 +126,7 @@ typedef struct pf_pbrt_mat {
     pf_pbrt_loc_t loc;
     int converted;   /* 0 not yet, 1 done, -1 being converted (a mix cycle) */
     int no_surface;  /* interface: shapes with it are dropped */
+    uint32_t part;   /* 1 + its scene material's index once added as a part of a mix; 0 */
     pf_material_t m;
 } pf_pbrt_mat_t;
 
@@ -362,6 +363,12 @@ int pf_pbrt_color_texture(pf_pbrt_t *c, pf_pbrt_param_t *p, uint32_t *ref);
  * 0 when absent or 1 (opaque), or when its texture class is not rendered
  * (warned). */
 int pf_pbrt_alpha_texture(pf_pbrt_t *c, pf_pbrt_params_t *ps, uint32_t *ref);
+/* A float parameter that may be a texture: a texture the scene renders
+ * gives its ref in *ref (and *value = def); otherwise *ref = 0 and *value is
+ * the number, or what pf_pbrt_get_float_tex makes of a texture it cannot
+ * render (a constant's value, or def with its warning). */
+int pf_pbrt_float_param(pf_pbrt_t *c, pf_pbrt_params_t *ps, const char *name, double def, const char *what,
+                        double *value, uint32_t *ref);
 int pf_pbrt_area_light(pf_pbrt_t *c, const char *type, pf_pbrt_params_t *ps, pf_pbrt_loc_t loc);
 int pf_pbrt_light(pf_pbrt_t *c, const char *type, pf_pbrt_params_t *ps, pf_pbrt_loc_t loc);
 /* ---- pbrt_env.c ---- */

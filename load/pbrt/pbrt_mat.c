@@ -19,8 +19,14 @@
  *   dielectric          GLASS ior = eta (a named glass: its index), alpha
  *                       from the roughness (rough glass from 1e-3)
  *   thindielectric      THIN_DIELECTRIC ior = eta
- *   diffusetransmission DIFFUSE kd = reflectance, warned
- *   mix                 the first of its two materials, warned
+ *   diffusetransmission DIFFUSE_TRANSMISSION kd = scale * reflectance (default
+ *                       0.25; a texture: kd_tex), kt = scale * transmittance
+ *                       (default 0.25); where kd + kt exceeds 1 both are
+ *                       scaled down to sum to 1 (warned: pbrt would make light)
+ *   mix                 MIX of its two materials (each added to the scene as
+ *                       a material of its own, le 0) with amount (default
+ *                       0.5; a float texture: amount_tex); a part that is an
+ *                       interface: the other part alone, warned
  *   interface, none     no surface: its shapes are dropped, warned
  *   measured, hair, subsurface, conductors with textured constants:
  *                       DIFFUSE grey 0.5, warned as not renderable
@@ -349,29 +355,97 @@ static int s_dielectric(pf_pbrt_t *c, pf_pbrt_mat_t *m, const char *what, int th
     return PF_OK;
 }
 
+static int s_difftrans(pf_pbrt_t *c, pf_pbrt_mat_t *m, const char *what)
+{
+    double scale;
+    pf_pbrt_param_t *p = pf_pbrt_param(&m->params, "reflectance");
+    int rc = PF_OK;
+    if (p && p->type == PF_PBRT_P_TEXTURE)
+        rc = pf_pbrt_color_texture(c, p, &m->m.kd_tex);
+    if (rc == PF_OK && !m->m.kd_tex)
+        rc = pf_pbrt_get_color(c, &m->params, "reflectance", PF_PBRT_ALBEDO, pf_v3s(0.25f), what, &m->m.kd, NULL);
+    if (rc == PF_OK)
+        rc = pf_pbrt_get_color(c, &m->params, "transmittance", PF_PBRT_ALBEDO, pf_v3s(0.25f), what, &m->m.kt, NULL);
+    if (rc == PF_OK)
+        rc = pf_pbrt_get_float(c, &m->params, "scale", 1.0, &scale);
+    if (rc)
+        return rc;
+    m->m.type = PF_MAT_DIFFUSE_TRANSMISSION;
+    m->m.kd = pf_scale(m->m.kd, (float)fmax(scale, 0.0));
+    m->m.kt = pf_scale(m->m.kt, (float)fmax(scale, 0.0));
+    float sum = pf_maxc(pf_add(m->m.kd_tex ? pf_v3s(0.0f) : m->m.kd, m->m.kt));
+    if (m->m.kd_tex)
+        m->m.kt = pf_scale(m->m.kt, sum > 1.0f ? 1.0f / sum : 1.0f); /* a textured kd is clamped at the hit */
+    else if (sum > 1.0f) {
+        m->m.kd = pf_scale(m->m.kd, 1.0f / sum);
+        m->m.kt = pf_scale(m->m.kt, 1.0f / sum);
+    }
+    if (sum > 1.0f)
+        return pf_pbrt_warn(c, m->loc, "diffusetransmission above 1 (scaled)",
+                            "%s: reflectance + transmittance reaches %.3g; both scaled by %.3g", what, sum, 1.0 / sum);
+    return PF_OK;
+}
+
 static int s_convert(pf_pbrt_t *c, pf_pbrt_mat_t *m);
+
+/* Part k of a mix: converted, and added to the scene once as a material of
+ * its own (le 0: the mix's pair carries the emission), its index in *out;
+ * *none when it is an interface (no surface). */
+static int s_mix_part(pf_pbrt_t *c, pf_pbrt_param_t *p, int k, const char *what, uint32_t *out, int *none)
+{
+    int id = pf_pbrt_name_find(c, p->str[k]);
+    int32_t r = id < 0 ? -1 : c->named_mat[id];
+    if (r < 0)
+        return pf_pbrt_error(c, PF_EPARSE, p->loc, "%s: no material named \"%s\"", what, p->str[k]);
+    if (c->mats[r].converted < 0)
+        return pf_pbrt_error(c, PF_EPARSE, p->loc, "%s: the mix refers to itself through \"%s\"", what, p->str[k]);
+    int rc = s_convert(c, &c->mats[r]);
+    if (rc)
+        return rc;
+    pf_pbrt_mat_t *f = &c->mats[r];
+    *none = f->no_surface;
+    if (!f->no_surface && !f->part) {
+        pf_material_t x = f->m;
+        x.le = pf_v3s(0.0f);
+        int mi = pf_scene_add_material(c->scene, &x);
+        if (mi < 0)
+            return pf_pbrt_error(c, PF_ENOMEM, p->loc, "out of memory");
+        f->part = (uint32_t)mi + 1;
+    }
+    *out = f->part ? f->part - 1 : 0;
+    return PF_OK;
+}
 
 static int s_mix(pf_pbrt_t *c, pf_pbrt_mat_t *m, const char *what)
 {
     pf_pbrt_param_t *p = pf_pbrt_param(&m->params, "materials");
     if (!p || p->type != PF_PBRT_P_STRING || p->nstr != 2)
         return pf_pbrt_error(c, PF_EPARSE, p ? p->loc : m->loc, "%s: needs \"string materials\" with two names", what);
-    pf_pbrt_param(&m->params, "amount");
-    int id = pf_pbrt_name_find(c, p->str[0]);
-    int32_t first = id < 0 ? -1 : c->named_mat[id];
-    if (first < 0)
-        return pf_pbrt_error(c, PF_EPARSE, p->loc, "%s: no material named \"%s\"", what, p->str[0]);
-    pf_pbrt_mat_t *f = &c->mats[first];
-    if (f->converted < 0)
-        return pf_pbrt_error(c, PF_EPARSE, p->loc, "%s: the mix refers to itself through \"%s\"", what, p->str[0]);
-    int rc = s_convert(c, f);
+    uint32_t idx[2];
+    int none[2];
+    double amount;
+    int rc = s_mix_part(c, p, 0, what, &idx[0], &none[0]);
+    if (rc == PF_OK)
+        rc = s_mix_part(c, p, 1, what, &idx[1], &none[1]);
+    if (rc == PF_OK)
+        rc = pf_pbrt_float_param(c, &m->params, "amount", 0.5, what, &amount, &m->m.amount_tex);
     if (rc)
         return rc;
-    f = &c->mats[first];
-    m->m = f->m;
-    m->no_surface = f->no_surface;
-    return pf_pbrt_warn(c, m->loc, "mix (the first material is used)", "%s: rendered as its first material \"%s\"",
-                        what, p->str[0]);
+    if (none[0] || none[1]) {
+        int k = none[0] ? 1 : 0; /* the part that has a surface, if any */
+        m->no_surface = none[k];
+        m->m.amount_tex = 0;
+        if (!none[k])
+            m->m = c->mats[c->named_mat[pf_pbrt_name_find(c, p->str[k])]].m;
+        return pf_pbrt_warn(c, m->loc, "mix with an interface (its other part alone)",
+                            "%s: \"%s\" has no surface; rendered as \"%s\" alone", what, p->str[none[0] ? 0 : 1],
+                            p->str[k]);
+    }
+    m->m.type = PF_MAT_MIX;
+    m->m.mix[0] = idx[0];
+    m->m.mix[1] = idx[1];
+    m->m.amount = (float)amount;
+    return PF_OK;
 }
 
 /* Converts material record m into m->m (once). */
@@ -394,13 +468,9 @@ static int s_convert(pf_pbrt_t *c, pf_pbrt_mat_t *m)
         rc = s_conductor(c, m, what, t[0] == 'c' && t[1] == 'o' && t[2] == 'a');
     else if (!strcmp(t, "dielectric") || !strcmp(t, "thindielectric"))
         rc = s_dielectric(c, m, what, t[0] == 't');
-    else if (!strcmp(t, "diffusetransmission")) {
-        rc = s_diffuse(c, m, what);
-        s_use_all(&m->params);
-        if (rc == PF_OK)
-            rc = pf_pbrt_warn(c, m->loc, "diffusetransmission (transmission dropped)",
-                              "%s: rendered as diffuse reflection alone", what);
-    } else if (!strcmp(t, "mix"))
+    else if (!strcmp(t, "diffusetransmission"))
+        rc = s_difftrans(c, m, what);
+    else if (!strcmp(t, "mix"))
         rc = s_mix(c, m, what);
     else if (!strcmp(t, "interface") || !strcmp(t, "none") || !t[0]) {
         m->no_surface = 1;

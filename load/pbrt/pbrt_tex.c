@@ -211,6 +211,27 @@ int pf_pbrt_color_texture(pf_pbrt_t *c, pf_pbrt_param_t *p, uint32_t *ref)
     return rc;
 }
 
+int pf_pbrt_float_param(pf_pbrt_t *c, pf_pbrt_params_t *ps, const char *name, double def, const char *what,
+                        double *value, uint32_t *ref)
+{
+    *ref = 0;
+    *value = def;
+    pf_pbrt_param_t *p = pf_pbrt_param(ps, name);
+    if (!p || p->type != PF_PBRT_P_TEXTURE)
+        return pf_pbrt_get_float_tex(c, ps, name, def, what, value, NULL);
+    if (p->nstr != 1)
+        return pf_pbrt_error(c, PF_EPARSE, p->loc, "texture parameter '%s' takes one texture name", name);
+    pf_pbrt_tex_t *t;
+    int rc = pf_pbrt_find_texture(c, p->str[0], 1, p->loc, &t);
+    if (rc == PF_OK)
+        rc = s_make(c, t, ref);
+    if (rc == PF_OK && *ref)
+        p->used = 1;
+    else if (rc == PF_OK)
+        rc = pf_pbrt_get_float_tex(c, ps, name, def, what, value, NULL);
+    return rc;
+}
+
 int pf_pbrt_alpha_texture(pf_pbrt_t *c, pf_pbrt_params_t *ps, uint32_t *ref)
 {
     *ref = 0;

@@ -275,17 +275,20 @@ static void test_materials(void)
         "Texture \"k\" \"spectrum\" \"constant\" \"rgb value\" [0.1 0.2 0.3]\n"
         "MakeNamedMaterial \"tex\" \"string type\" \"diffuse\" \"texture reflectance\" \"img\"\n"
         "MakeNamedMaterial \"const\" \"string type\" \"diffuse\" \"texture reflectance\" \"k\"\n"
-        "MakeNamedMaterial \"mix\" \"string type\" \"mix\" \"string materials\" [\"red\" \"cu\"]\n"
+        "MakeNamedMaterial \"mix\" \"string type\" \"mix\" \"string materials\" [\"red\" \"cu\"] \"float amount\" 0.3\n"
+        "MakeNamedMaterial \"sheet\" \"string type\" \"diffusetransmission\" \"rgb reflectance\" [0.2 0.3 0.4] "
+        "\"rgb transmittance\" [0.5 0.5 0.5] \"float scale\" 2\n"
+        "MakeNamedMaterial \"dt0\" \"string type\" \"diffusetransmission\"\n"
         "MakeNamedMaterial \"later\" \"string type\" \"diffuse\" \"float foo\" 1\n"
         "MakeNamedMaterial \"air\" \"string type\" \"interface\"\n" S_SHAPE("red") S_SHAPE("cu") S_SHAPE("au")
             S_SHAPE("refl") S_SHAPE("bk7") S_SHAPE("water") S_SHAPE("coat") S_SHAPE("tex") S_SHAPE("const")
-                S_SHAPE("mix") S_SHAPE("air") S_SHAPE("aniso") S_SHAPE("raw") S_SHAPE("neg") S_SHAPE("pane") "Material \"diffuse\" \"rgb reflectance\" [0.25 0.25 0.25]\n" S_TRI,
+                S_SHAPE("mix") S_SHAPE("air") S_SHAPE("aniso") S_SHAPE("raw") S_SHAPE("neg") S_SHAPE("pane") S_SHAPE("sheet") S_SHAPE("dt0") "Material \"diffuse\" \"rgb reflectance\" [0.25 0.25 0.25]\n" S_TRI,
         0, &rep, &err);
     CHECK(s != NULL, "%s", err.msg);
     if (!s)
         return;
     const pf_material_t *m;
-    CHECK(s->nmeshes == 16, "the interface shape is dropped: %zu meshes", s->nmeshes);
+    CHECK(s->nmeshes == 18, "the interface shape is dropped: %zu meshes", s->nmeshes);
     if ((m = s_mat(s, "red")))
         CHECK(m->type == PF_MAT_DIFFUSE && s_vnear(m->kd, 0.8f, 0, 0));
     if ((m = s_mat(s, "cu")))
@@ -324,15 +327,28 @@ static void test_materials(void)
         CHECK(s_vnear(m->kd, 0.5f, 0.5f, 0.5f));
     if ((m = s_mat(s, "const")))
         CHECK(s_vnear(m->kd, 0.1f, 0.2f, 0.3f));
+    /* the mix: its parts added as materials of their own, amount 0.3 */
     if ((m = s_mat(s, "mix")))
-        CHECK(m->type == PF_MAT_DIFFUSE && s_vnear(m->kd, 0.8f, 0, 0));
+        CHECK(m->type == PF_MAT_MIX && m->mix[0] < s->nmats && m->mix[1] < s->nmats &&
+                  s->mats[m->mix[0]].type == PF_MAT_DIFFUSE && s_vnear(s->mats[m->mix[0]].kd, 0.8f, 0, 0) &&
+                  s->mats[m->mix[1]].type == PF_MAT_CONDUCTOR && s_near(m->amount, 0.3f) && m->amount_tex == 0,
+              "mix: type %d", (int)m->type);
+    /* reflectance + transmittance 2 (0.4 + 1, 0.6 + 1, 0.8 + 1): scaled by 1 / 1.8, warned */
+    if ((m = s_mat(s, "sheet")))
+        CHECK(m->type == PF_MAT_DIFFUSE_TRANSMISSION && s_vnear(m->kd, 0.4f / 1.8f, 0.6f / 1.8f, 0.8f / 1.8f) &&
+                  s_vnear(m->kt, 1.0f / 1.8f, 1.0f / 1.8f, 1.0f / 1.8f) &&
+                  s_warned(&rep, "diffusetransmission above 1 (scaled)") == 1,
+              "diffusetransmission: type %d kd %g kt %g", (int)m->type, m->kd.x, m->kt.x);
+    if ((m = s_mat(s, "dt0")))
+        CHECK(m->type == PF_MAT_DIFFUSE_TRANSMISSION && s_vnear(m->kd, 0.25f, 0.25f, 0.25f) &&
+                  s_vnear(m->kt, 0.25f, 0.25f, 0.25f), "pbrt's defaults 0.25 and 0.25");
     if ((m = s_mat(s, "later")))
         CHECK(s_vnear(m->kd, 0.5f, 0.5f, 0.5f), "a forward NamedMaterial resolves");
     const pf_mesh_t *last = &s->meshes[s->nmeshes - 1];
     CHECK(s_vnear(s->mats[last->mat[0]].kd, 0.25f, 0.25f, 0.25f), "Material sets the current material");
     CHECK(s_warned(&rep, "rough conductor") == 0 && s_warned(&rep, "anisotropic roughness (isotropic mean used)") == 1 &&
           s_warned(&rep, "coateddiffuse") == 0 &&
-          s_warned(&rep, "texture") == 1 && s_warned(&rep, "mix") == 1 && s_warned(&rep, "interface") == 1 &&
+          s_warned(&rep, "texture") == 1 && s_warned(&rep, "mix") == 0 && s_warned(&rep, "interface") == 1 &&
           s_warned(&rep, "unused parameter \"float foo\"") == 1);
     pf_scene_destroy(&s);
 

@@ -609,6 +609,55 @@ static void test_coated(void)
     pf_scene_destroy(&sc);
 }
 
+/* diffusetransmission (kd, kt, pbrt's 0.25 defaults, kd + kt <= 1), mix
+ * (two earlier materials and an amount) and "dielectric" as glass. */
+static void test_mix_difftrans(void)
+{
+    pf_error_t err = { { 0 } };
+    pf_scene_t *sc = s_json_text(
+        "{ \"materials\": [ { \"name\": \"leaf\", \"type\": \"diffusetransmission\", \"kd\": [0.2, 0.3, 0.4],\n"
+        "  \"kt\": [0.7, 0.6, 0.5] }, { \"name\": \"paper\", \"type\": \"diffusetransmission\" },\n"
+        "  { \"name\": \"g\", \"type\": \"dielectric\", \"ior\": 1.4 },\n"
+        "  { \"name\": \"m\", \"type\": \"mix\", \"materials\": [\"g\", \"leaf\"], \"amount\": 0.25 },\n"
+        "  { \"name\": \"half\", \"type\": \"mix\", \"materials\": [\"m\", \"paper\"] } ] }\n",
+        &err);
+    CHECK(sc && sc->nmats == 5, "mix and diffusetransmission load: %s", sc ? "" : err.msg);
+    if (sc && sc->nmats == 5) {
+        const pf_material_t *l = &sc->mats[0], *p = &sc->mats[1], *g = &sc->mats[2], *m = &sc->mats[3],
+                            *h = &sc->mats[4];
+        CHECK(l->type == PF_MAT_DIFFUSE_TRANSMISSION && near3(l->kd, pf_v3(0.2f, 0.3f, 0.4f), 0) &&
+                  near3(l->kt, pf_v3(0.7f, 0.6f, 0.5f), 0),
+              "leaf: type %d", (int)l->type);
+        CHECK(p->type == PF_MAT_DIFFUSE_TRANSMISSION && near3(p->kd, pf_v3s(0.25f), 0) &&
+                  near3(p->kt, pf_v3s(0.25f), 0),
+              "defaults 0.25, 0.25");
+        CHECK(g->type == PF_MAT_GLASS && g->ior == 1.4f, "dielectric is glass");
+        CHECK(m->type == PF_MAT_MIX && m->mix[0] == 2 && m->mix[1] == 0 && m->amount == 0.25f, "mix %u %u %g",
+              (unsigned)m->mix[0], (unsigned)m->mix[1], (double)m->amount);
+        CHECK(h->type == PF_MAT_MIX && h->mix[0] == 3 && h->mix[1] == 1 && h->amount == 0.5f, "a mix of a mix");
+    }
+    pf_scene_destroy(&sc);
+    const char *bad[][2] = {
+        { "{ \"materials\": [ { \"name\": \"a\", \"type\": \"diffusetransmission\", \"kd\": 0.6, \"kt\": 0.5 } ] }\n",
+          "kd + kt exceeds 1" },
+        { "{ \"materials\": [ { \"name\": \"a\", \"type\": \"diffusetransmission\", \"ior\": 1.5 } ] }\n",
+          "key 'ior' does not apply" },
+        { "{ \"materials\": [ { \"name\": \"a\", \"type\": \"mix\", \"materials\": [\"a\", \"a\"] } ] }\n",
+          "no material named 'a' before it" },
+        { "{ \"materials\": [ { \"name\": \"b\" }, { \"name\": \"a\", \"type\": \"mix\", \"materials\": [\"b\"] } ] }\n",
+          "an array of two material names" },
+        { "{ \"materials\": [ { \"name\": \"b\" }, { \"name\": \"a\", \"type\": \"mix\" } ] }\n", "materials" },
+        { "{ \"materials\": [ { \"name\": \"b\" }, { \"name\": \"a\", \"type\": \"mix\", \"materials\": [\"b\", \"b\"],"
+          " \"amount\": 1.5 } ] }\n",
+          "'amount' in material must lie in [0, 1]" },
+    };
+    for (size_t i = 0; i < sizeof bad / sizeof *bad; i++) {
+        sc = s_json_text(bad[i][0], &err);
+        CHECK(!sc && strstr(err.msg, bad[i][1]), "case %zu: %s", i, sc ? "loaded" : err.msg);
+        pf_scene_destroy(&sc);
+    }
+}
+
 /* The conductor's keys: "eta" + "k" land as given, "reflectance" becomes
  * eta 1 and the k of that normal-incidence reflectance, "roughness" is the
  * GGX alpha (default 0); errors for both forms, neither, or bad ranges. */
@@ -770,6 +819,7 @@ int main(void)
     test_conductor();
     test_thin_dielectric();
     test_coated();
+    test_mix_difftrans();
     test_models();
     test_remap_errors();
     test_corruptions();

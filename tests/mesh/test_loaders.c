@@ -13,6 +13,7 @@
 
 #include "base/log.h"
 #include "scene/scene.h"
+#include "scene/texture.h"
 
 #include "check.h"
 #include "load/load.h"
@@ -433,6 +434,51 @@ static void test_mtl_mapping(void)
     pf_scene_destroy(&s);
 }
 
+/* The PBR extension (Pr, Pm) and map_d: Pm > 0.5 a GGX conductor of
+ * reflectance Kd and alpha Pr^2, else a coated Kd of alpha Pr^2 (index Ni);
+ * map_d an alpha texture, linear, on the material. */
+static void test_mtl_pbr(void)
+{
+    /* a 2 x 1 binary PGM: black then white */
+    s_write("mask.pgm", "P5 2 1 255\n\x00\xff", 14);
+    const char *path = s_write_str("pbr.mtl", "newmtl gold\nKd 0.9 0.6 0.2\nPm 1\nPr 0.5\n"
+                                              "newmtl plastic\nKd 0.1 0.2 0.8\nPr 0.3\nPm 0.2\nNi 1.4\n"
+                                              "newmtl rough\nKd 0.5\nPr 2\n"
+                                              "newmtl chrome\nKd 0.8\nPm 0.7\n"
+                                              "newmtl leaf\nKd 0.2 0.6 0.1\nmap_d -s 2 2 mask.pgm\n"
+                                              "newmtl gone\nmap_d missing.png\n");
+    pf_scene_t *s = pf_scene_create();
+    pf_error_t err = { { 0 } };
+    int rc = pf_mtl_load(s, path, &err);
+    CHECK(rc == PF_OK, "%s", err.msg);
+    const float e = 1e-6f;
+    const pf_material_t *m = s_mat(s, "gold");
+    CHECK(m && m->type == PF_MAT_CONDUCTOR && s_vnear(m->ks, 0.9f, 0.6f, 0.2f, e) && s_veq(m->eta, 1, 1, 1) &&
+              fabsf(m->k.x - pf_conductor_k_of_reflectance(0.9f)) < e && fabsf(m->alpha - 0.25f) < e,
+          "gold: type %d alpha %g", m ? (int)m->type : -1, m ? (double)m->alpha : 0.0);
+    m = s_mat(s, "plastic");
+    CHECK(m && m->type == PF_MAT_COATED && s_vnear(m->kd, 0.1f, 0.2f, 0.8f, e) && fabsf(m->alpha - 0.09f) < e &&
+              m->ior == 1.4f && m->thickness == 0.0f,
+          "plastic: type %d", m ? (int)m->type : -1);
+    m = s_mat(s, "rough"); /* Pr clamped to 1 */
+    CHECK(m && m->type == PF_MAT_COATED && m->alpha == 1.0f && m->ior == 1.5f);
+    m = s_mat(s, "chrome"); /* no Pr: a smooth metal */
+    CHECK(m && m->type == PF_MAT_CONDUCTOR && m->alpha == 0.0f && s_vnear(m->ks, 0.8f, 0.8f, 0.8f, e));
+    m = s_mat(s, "leaf");
+    CHECK(m && m->type == PF_MAT_DIFFUSE && m->alpha_tex > 0 && m->alpha_tex <= s->ntexs, "leaf: alpha_tex %u",
+          m ? (unsigned)m->alpha_tex : 0);
+    if (m && m->alpha_tex > 0 && m->alpha_tex <= s->ntexs) {
+        const pf_texture_t *t = &s->texs[m->alpha_tex - 1];
+        pf_vec3 a0 = pf_texture_eval(s, m->alpha_tex, 0.125f, 0.5f),
+                a1 = pf_texture_eval(s, m->alpha_tex, 0.375f, 0.5f);
+        CHECK(t->su == 2.0f && t->sv == 2.0f && a0.x < 0.01f && a1.x > 0.99f, "mask: su %g, %g then %g",
+              (double)t->su, (double)a0.x, (double)a1.x);
+    }
+    m = s_mat(s, "gone"); /* a missing mask: a warning, opaque */
+    CHECK(m && m->alpha_tex == 0);
+    pf_scene_destroy(&s);
+}
+
 static void test_mtl_errors(void)
 {
     pf_scene_t *s = pf_scene_create();
@@ -823,6 +869,7 @@ int main(void)
     test_obj_errors();
     test_mtl_mapping();
     test_mtl_errors();
+    test_mtl_pbr();
     test_ply_ascii();
     test_ply_binary();
     test_bunny();
@@ -830,7 +877,7 @@ int main(void)
     printf("loaders: %.0f ms\n", 1000.0 * (pf_now() - t0));
 
     static const char *files[] = { "materials.mtl", "extra.mtl", "crlf.obj", "long_polygon.obj", "bad_case.obj",
-                                   "ext.obj", "bad_case.mtl", "bad_case.ply", "bad_body.ply", "bin.ply", "cut.ply",
+                                   "ext.obj", "bad_case.mtl", "mask.pgm", "pbr.mtl", "bad_case.ply", "bad_body.ply", "bin.ply", "cut.ply",
                                    "nan.ply", "index.ply", "absurd.ply", "longlist.ply", "skiplist.ply" };
     char path[512];
     for (size_t i = 0; i < sizeof files / sizeof files[0]; i++) {

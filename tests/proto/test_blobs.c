@@ -106,6 +106,17 @@ static pf_scene_t *s_tiny_scene(void)
     m.kt = pf_v3(0.8f, 0.9f, 1.0f);
     m.ior = 1.52f;
     pf_scene_add_material(s, &m);
+    m = pf_material_default("leaf"); /* version 9: diffuse transmission and mix */
+    m.type = PF_MAT_DIFFUSE_TRANSMISSION;
+    m.kd = pf_v3(0.2f, 0.5f, 0.1f);
+    m.kt = pf_v3(0.6f, 0.4f, 0.3f);
+    pf_scene_add_material(s, &m);
+    m = pf_material_default("worn");
+    m.type = PF_MAT_MIX;
+    m.mix[0] = 4;
+    m.mix[1] = 6;
+    m.amount = 0.3f;
+    pf_scene_add_material(s, &m);
 
     pf_mesh_t quad;
     memset(&quad, 0, sizeof quad);
@@ -280,6 +291,7 @@ typedef struct s_offsets {
     size_t reserved, has_camera, fov_shorter, left_handed, lens_radius, focal_distance, nmats, mat1_type, mat0_name, nmeshes;
     size_t mat4_eta; /* the conductor's eta, k, alpha */
     size_t mat1_kd_tex;
+    size_t mat7_mix0; /* the mix's first index */
     size_t mesh0_nverts, mesh0_ntris, mesh0_has_nrm, mesh0_has_uv, mesh0_pos, mesh0_idx, mesh0_mat;
     size_t nspheres, sphere0_radius, sphere0_mat, nlights, light0_type, ntexs, end;
 } s_offsets_t;
@@ -311,7 +323,9 @@ static s_offsets_t s_walk(const uint8_t *d)
             o.mat1_type = at, o.mat1_kd_tex = at + 1 + 56 + 28 + 4; /* after eta, k, alpha, thickness */
         if (i == 4)
             o.mat4_eta = at + 1 + 56;
-        at += 1 + 56 + 36;
+        if (i == 7)
+            o.mat7_mix0 = at + 1 + 56 + 28 + 4 + 4; /* after kd_tex */
+        at += 1 + 56 + 36 + 20; /* and version 9: mix0, mix1, amount, amount_tex, alpha_tex */
     }
     o.nmeshes = at;
     uint32_t nmesh = d[at];
@@ -394,13 +408,14 @@ static void test_scene_blob(void)
 
     const s_spatch_t patches[] = {
         { 0, 1, 'X', 0, "bad magic", "magic" },
-        { 4, 2, 9, 0, "format version 9", "version" },
-        { 4, 2, 2, 0, "format version 2, this build reads 8", "version 2 (before the lens)" },
-        { 4, 2, 3, 0, "format version 3, this build reads 8", "version 3 (before the conductor)" },
-        { 4, 2, 4, 0, "format version 4, this build reads 8", "version 4 (before the thin dielectric)" },
-        { 4, 2, 5, 0, "format version 5, this build reads 8", "version 5 (before the distant light)" },
-        { 4, 2, 6, 0, "format version 6, this build reads 8", "version 6 (before the coat and the textures)" },
-        { 4, 2, 7, 0, "format version 7, this build reads 8", "version 7 (before the environment maps)" },
+        { 4, 2, 10, 0, "format version 10", "version" },
+        { 4, 2, 2, 0, "format version 2, this build reads 9", "version 2 (before the lens)" },
+        { 4, 2, 3, 0, "format version 3, this build reads 9", "version 3 (before the conductor)" },
+        { 4, 2, 4, 0, "format version 4, this build reads 9", "version 4 (before the thin dielectric)" },
+        { 4, 2, 5, 0, "format version 5, this build reads 9", "version 5 (before the distant light)" },
+        { 4, 2, 6, 0, "format version 6, this build reads 9", "version 6 (before the coat and the textures)" },
+        { 4, 2, 7, 0, "format version 7, this build reads 9", "version 7 (before the environment maps)" },
+        { 4, 2, 8, 0, "format version 8, this build reads 9", "version 8 (before mix and diffuse transmission)" },
         { o.reserved, 2, 1, 0, "reserved", "reserved field" },
         { o.has_camera, 1, 2, 0, "has_camera", "has_camera 2" },
         { o.has_camera + 1, -4, 0, NAN, "camera pos is not a finite number", "camera NaN" },
@@ -417,8 +432,10 @@ static void test_scene_blob(void)
         { o.nmats, 4, 7, 0, "", "material count one too many" },
         { o.mat0_name, 2, 64, 0, "name is 64 bytes", "material name too long" },
         { o.mat0_name + 2, 1, 0, 0, "NUL", "material name with a NUL" },
-        { o.mat1_type, 1, 7, 0, "material 1 type 7", "material type" },
-        { o.mat1_type, 1, 6, 0, "material 1 type 6 is not a material type (0..5)", "material type 6" },
+        { o.mat1_type, 1, 8, 0, "material 1 type 8", "material type" },
+        { o.mat1_type, 1, 8, 0, "material 1 type 8 is not a material type (0..7)", "material type 8" },
+        { o.mat1_type, 1, 6, 0, "diffuse transmission needs", "glass as diffuse transmission (kd + kt > 1)" },
+        { o.mat7_mix0, 4, 99, 0, "mix of materials 99 and 6, out of range", "mix index (finalize)" },
         { o.mat1_type + 1, -4, 0, INFINITY, "material 1 kd is not a finite number", "material inf" },
         { o.mat4_eta, -4, 0, -1.0f, "material 4 conductor needs eta > 0", "conductor eta -1" },
         { o.mat4_eta + 12, -4, 0, -0.5f, "material 4 conductor needs eta > 0", "conductor k -0.5" },
@@ -435,7 +452,7 @@ static void test_scene_blob(void)
         { o.ntexs, 4, 0x10000000u, 0, "textures need at least", "texture count" },
         { o.mesh0_pos + 4, -4, 0, NAN, "positions is not a finite", "NaN position" },
         { o.mesh0_idx + 4, 4, 4, 0, "vertex index 4 is out of range", "vertex index" },
-        { o.mesh0_mat + 4, 4, 6, 0, "material index 6 is out of range", "triangle material" },
+        { o.mesh0_mat + 4, 4, 8, 0, "material index 8 is out of range", "triangle material" },
         { o.nspheres, 4, 0x7fffffffu, 0, "spheres need at least", "sphere count" },
         { o.sphere0_radius, -4, 0, 0.0f, "sphere 0: centre must be finite and radius > 0", "radius 0 (finalize)" },
         { o.sphere0_mat, 4, 9, 0, "sphere 0 material index 9", "sphere material" },
