@@ -151,8 +151,8 @@ HOARD=(--size 128x128 --spp 16 --photons 50000 --caustic-photons 50000 --gather 
 # shellcheck disable=SC2034
 SMALL=(--size 96x96 --spp 4 --photons 50000 --caustic-photons 50000 --gather 8 --tile 16)
 # shellcheck disable=SC2034
-# 8 global batches of 65,536 photons: the photon pass lasts long enough
-# for a worker started beside the coordinator to be leased some.
+# 8 global batches of 65,536 photons; the photon liar connects first, so
+# it is leased some of them.
 PHOT=(--size 64x64 --spp 2 --photons 500000 --caustic-photons 50000 --gather 8 --tile 16 --passes 2)
 # shellcheck disable=SC2034
 BIG=(--size 192x192 --spp 25 --photons 50000 --caustic-photons 50000 --gather 8 --tile 16)
