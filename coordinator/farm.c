@@ -45,7 +45,9 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/random.h>
 #include <sys/wait.h>
+#include <time.h>
 #include <unistd.h>
 #include <zmq.h>
 
@@ -105,7 +107,10 @@ static void s_photon_pass_next(pf_fm_photons_t *p)
     p->into_next = 1;
     double t0 = pf_now();
     pf_photon_maps_free(&p->next);
-    p->rc = pf_photon_pass(p->scene, p->frame.accel, p->frame.lights, &p->settings, &p->next, &p->stats);
+    if (p->spread)
+        p->rc = pf_fm_photons_spread(p, &p->next); /* the workers take batches between their tiles */
+    else
+        p->rc = pf_photon_pass(p->scene, p->frame.accel, p->frame.lights, &p->settings, &p->next, &p->stats);
     if (p->rc) {
         pf_error_set(&p->err, p->rc, NULL, 0, "photon pass failed: %s", pf_strerror(p->rc));
         return;
@@ -250,6 +255,20 @@ void pf_farm_opts_default(pf_farm_opts_t *o)
     o->takeover_factor = 4.0;
     o->takeover_min_s = 2.0;
     o->verify = 0.02;
+    o->photon_check = 16;
+}
+
+/* The spot checks' per-run secret: from the kernel, else (no getrandom)
+ * from the clock, the pid and an address, which a worker cannot see. */
+static uint64_t s_check_secret(void)
+{
+    uint64_t v = 0;
+    if (getrandom(&v, sizeof v, 0) == (ssize_t)sizeof v && v)
+        return v;
+    struct timespec ts;
+    clock_gettime(CLOCK_REALTIME, &ts);
+    v = pf_hash_u64(pf_hash_u64(PF_HASH_INIT, (uint64_t)ts.tv_nsec ^ ((uint64_t)ts.tv_sec << 30)), (uint64_t)getpid());
+    return pf_hash_u64(v, (uint64_t)(uintptr_t)&v);
 }
 
 static int s_loopback(const char *ep)
@@ -444,6 +463,13 @@ static int s_start_photons(pf_fm_t *f, const pf_scene_t *scene, int pass, const 
         f->ph.settings = *s;
     }
     f->ph.pass = pass;
+    /* A JOB went out before: its scene blob (the same every pass) is the
+     * one the workers trace over, and the blob server has it. */
+    f->ph.early_from_job = f->jobmsg.scene_size != 0;
+    if (f->ph.early_from_job) {
+        f->ph.early_hash = f->jobmsg.scene_hash;
+        f->ph.early_size = f->jobmsg.scene_size;
+    }
     f->ph.job = f->job0 + (uint64_t)pass;
     if (f->ph.job == 0)
         f->ph.job = 1;
@@ -816,6 +842,8 @@ int pf_farm_render(const pf_scene_t *scene, const pf_settings_t *settings, unsig
     if (f.job == 0)
         f.job = 1;
     f.job0 = f.job;
+    f.ph.check_secret = s_check_secret();
+    f.ph.check_one_in = opts->photon_check;
 
     pf_settings_t s = *settings;
     if (s.threads <= 0)
@@ -879,6 +907,11 @@ void pf_farm_summary_log(const pf_farm_summary_t *s)
                 (unsigned long long)s->ph_batches, (unsigned long long)s->ph_local, (unsigned long long)s->ph_stolen,
                 (unsigned long long)s->ph_remote, (unsigned long long)s->ph_stale, (unsigned long long)s->ph_expired,
                 s->ph_trace_s > 0 ? (double)s->ph_emitted / s->ph_trace_s / 1e6 : 0.0);
+    if (s->ph_checked || s->ph_mismatches)
+        pf_info("summary: photon spot checks: %llu worker batch%s traced again here, %llu mismatch%s (each a strike), "
+                "%llu worker batches discarded and traced again",
+                (unsigned long long)s->ph_checked, s->ph_checked == 1 ? "" : "es", (unsigned long long)s->ph_mismatches,
+                s->ph_mismatches == 1 ? "" : "es", (unsigned long long)s->ph_discarded);
     for (int i = 0; i < s->nper_worker; i++)
         pf_info("summary: worker %s rendered %llu tiles, traced %llu photon batches", s->per_worker[i].name,
                 (unsigned long long)s->per_worker[i].tiles, (unsigned long long)s->per_worker[i].photon_batches);

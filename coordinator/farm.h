@@ -57,8 +57,10 @@ typedef struct pf_farm_opts {
     double verify;            /* fraction of tiles rendered again on a second worker and compared bit for bit,
                                  besides each worker's first result once another worker can check it (default
                                  0.02; 0: no checks) */
-    int photons_here;         /* the first photon pass is traced on the coordinator alone, not spread over the
+    int photons_here;         /* every photon pass is traced on the coordinator alone, not spread over the
                                  workers in batches (farm_photons.c) */
+    uint32_t photon_check;    /* about one worker photon batch in this many is traced again here and compared
+                                 bit for bit, and at least one of each worker's a pass (default 16; 0: none) */
 } pf_farm_opts_t;
 
 void pf_farm_opts_default(pf_farm_opts_t *o);
@@ -69,7 +71,7 @@ void pf_farm_opts_default(pf_farm_opts_t *o);
 typedef struct pf_farm_worker_stat {
     char name[64];
     uint64_t tiles;
-    uint64_t photon_batches; /* first photon pass's batches it traced (ph_batches.h) */
+    uint64_t photon_batches; /* photon batches it traced, all passes (ph_batches.h) */
 } pf_farm_worker_stat_t;
 
 typedef struct pf_farm_summary {
@@ -94,12 +96,15 @@ typedef struct pf_farm_summary {
     double error_est, photon_total_s;
     size_t unreached;
     pf_settings_t settings; /* the last pass's */
-    /* The first photon pass, spread over the workers (ph_batches.h): its
-     * batches, those traced here and by workers, worker results dropped as
-     * late or duplicate, leases expired, batches traced here while leased;
-     * its photons emitted and the tracing's wall time. */
+    /* The photon passes, spread over the workers (ph_batches.h), all
+     * passes together: their batches, those traced here and by workers,
+     * worker results dropped as late or duplicate, leases expired, batches
+     * traced here while leased; their photons emitted and the tracing's
+     * wall time; worker batches checked here, mismatches (each a strike)
+     * and worker batches discarded after one. */
     uint64_t ph_batches, ph_local, ph_remote, ph_stale, ph_expired, ph_stolen, ph_emitted;
     double ph_trace_s;
+    uint64_t ph_checked, ph_mismatches, ph_discarded;
 } pf_farm_summary_t;
 
 /* Renders scene with settings through workers into *img (allocated here).

@@ -48,14 +48,19 @@ typedef struct pf_fm_photons {
     pf_frame_t frame; /* the scene's accel and lights, then the maps */
     pf_photon_stats_t stats;
     pf_framed_blob_t scene_fb, maps_fb; /* the blobs, cut into chunk frames */
-    /* The first pass's photons spread over the workers (farm_photons.c):
-     * spread says it may be; the thread frames the scene blob early (the
-     * workers trace over it), makes the batch table and then sets
-     * phq_ready; the event loop publishes the blob, leases batches, and
-     * frees the table once the thread is joined. */
+    /* Every pass's photons spread over the workers (farm_photons.c):
+     * spread says they may be; for the first pass the thread frames the
+     * scene blob early (the workers trace over it; a later pass's is the
+     * JOB's, with the blob server already: early_from_job), makes the batch
+     * table and then sets phq_ready; the event loop publishes the blob,
+     * leases batches, and frees the table once the thread is joined.
+     * check_secret (drawn per run) and check_one_in drive the spot checks. */
     int spread;
+    int early_from_job;
     pf_framed_blob_t early_fb;
     uint64_t early_hash, early_size;
+    uint64_t check_secret;
+    uint32_t check_one_in;
     pf_photon_tracer_t *tracer;
     pf_phq_t *phq;
     int phq_ready; /* atomic */

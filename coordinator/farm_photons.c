@@ -1,4 +1,4 @@
-/* farm_photons.c: the first photon pass spread over the workers (farm_impl.h).
+/* farm_photons.c: every photon pass spread over the workers (farm_impl.h).
  *
  * The photon thread frames the scene blob first, so that welcomed workers
  * can fetch it and trace photon batches while the pass is under way, then
@@ -10,9 +10,20 @@
  * irradiance as the in-process pass does: the maps are the same bits for any
  * number of workers, and the coordinator still builds them once.
  *
- * Only the first pass (of a render, or of a resumed one) is spread: a later
- * progressive pass's photons are traced here while the workers gather the
- * pass before (they are busy, and their tiles come first).
+ * A later progressive pass's photons are traced while the workers gather
+ * the pass before: the photon thread traces free batches as it goes, and a
+ * worker that has its JOB and is READY is leased batches (queued on it
+ * behind its tiles) when it would otherwise idle (no tile left in the
+ * queue) or when the photon pass lags the tiles (a smaller share of its
+ * batches done than of the pass's tiles: the next JOB would wait for the
+ * maps). Between passes (no JOB out) every welcomed worker takes batches,
+ * as in the first pass. A later pass's scene blob is the JOB's (the same
+ * content and hash every pass), which the workers already hold.
+ *
+ * Spot checks (ph_batches.h): the photon thread re-traces a secret-seeded
+ * sample of each worker's batches and compares them bit for bit; a worker
+ * caught is struck here, barred from photon batches for the rest of the
+ * job, and every batch it returned this pass is traced again.
  *
  * Hostile peers: a PHOTONS that contradicts the plan or its earlier parts is
  * a strike (its batch goes back to the free list); a late or duplicate one
@@ -43,18 +54,23 @@ int pf_fm_photons_spread(pf_fm_photons_t *p, pf_photon_maps_t *maps)
     memset(maps, 0, sizeof *maps);
     memset(&p->stats, 0, sizeof p->stats);
     pf_buf_t sb = { 0 };
-    int rc = pf_sceneblob_write(p->scene, &sb);
-    if (rc == PF_OK) {
-        p->early_hash = pf_hash_bytes(PF_HASH_INIT, sb.data, sb.len);
-        p->early_size = sb.len;
-        rc = pf_framed_blob_make(&p->early_fb, p->job, p->early_hash, &sb);
+    int rc = PF_OK;
+    if (!p->early_from_job) {
+        rc = pf_sceneblob_write(p->scene, &sb);
+        if (rc == PF_OK) {
+            p->early_hash = pf_hash_bytes(PF_HASH_INIT, sb.data, sb.len);
+            p->early_size = sb.len;
+            rc = pf_framed_blob_make(&p->early_fb, p->job, p->early_hash, &sb);
+        }
+        pf_buf_free(&sb);
     }
-    pf_buf_free(&sb);
     if (rc == PF_OK)
         rc = pf_photon_tracer_new(p->scene, fr->accel, fr->lights, s, 0, &p->tracer);
     if (rc == PF_OK) {
         p->phq = pf_phq_new(p->tracer, s->photon_max_depth);
         rc = p->phq ? PF_OK : PF_ENOMEM;
+        if (p->phq)
+            pf_phq_checks(p->phq, p->check_secret, p->check_one_in);
     }
     if (rc != PF_OK)
         return rc;
@@ -95,22 +111,63 @@ static void s_lease(pf_fm_t *f, int wi, pf_phq_t *q)
     w->ph_asked = 1;
 }
 
+/* Workers the spot checks caught: struck (farm_peers.c) and barred from
+ * photon batches for the rest of the job. */
+static void s_strike_liars(pf_fm_t *f, pf_phq_t *q)
+{
+    uint32_t uid;
+    char why[160];
+    while (pf_phq_take_liar(q, &uid, why, sizeof why)) {
+        f->sum->ph_mismatches++;
+        for (int i = 0; i < f->reg.nw; i++) {
+            pf_worker_t *w = &f->reg.w[i];
+            if (w->uid != uid || w->state == PF_W_FREE)
+                continue;
+            pf_warn("photon pass %d: worker %s returned a wrong photon batch (spot check): its batches of the pass "
+                    "are traced again", f->ph.pass + 1, w->name);
+            w->ph_barred = 1;
+            w->ph_batches -= w->ph_pass;
+            w->ph_pass = 0;
+            pf_fm_strike(f, i, why);
+        }
+    }
+}
+
+/* While a pass's tiles are out (job_ready): may READY worker w take photon
+ * batches of the next pass now? When no tile is queued (it would idle), or
+ * when the photon pass lags the tiles. */
+static int s_may_interleave(const pf_fm_t *f, pf_phq_t *q)
+{
+    if (f->L.qlen == 0)
+        return 1;
+    uint32_t done, total;
+    pf_phq_progress(q, &done, &total);
+    return total && (uint64_t)done * (uint64_t)f->L.nt < (uint64_t)f->L.ndone * total;
+}
+
 void pf_fm_photons_tick(pf_fm_t *f)
 {
     pf_phq_t *q = s_phq(f);
-    if (!q || f->job_ready || __atomic_load_n(&f->ph.done, __ATOMIC_ACQUIRE))
+    if (!q)
+        return;
+    s_strike_liars(f, q);
+    if (__atomic_load_n(&f->ph.done, __ATOMIC_ACQUIRE))
         return;
     if (!f->ph_published) {
-        pf_framed_blob_t none = { 0 };
-        pf_xfer_set_blobs(f->xfer, &f->ph.early_fb, &none);
+        if (!f->ph.early_from_job) {
+            pf_framed_blob_t none = { 0 };
+            pf_xfer_set_blobs(f->xfer, &f->ph.early_fb, &none);
+        }
         f->ph_published = 1;
     }
     uint32_t n = pf_phq_expire(q, pf_now(), S_LEASE_TIMEOUT_S);
     if (n && pf_fm_may_log(&f->peer_log, 10.0))
         pf_warn("photon pass: %u batch lease%s expired; traced by someone else", n, n == 1 ? "" : "s");
+    int interleave = f->job_ready && s_may_interleave(f, q);
     for (int i = 0; i < f->reg.nw; i++) {
         const pf_worker_t *w = &f->reg.w[i];
-        if (w->state == PF_W_HELLO && !w->stuck && pf_phq_held(q, w->uid) == 0)
+        int fits = f->job_ready ? w->state == PF_W_READY && interleave : w->state == PF_W_HELLO;
+        if (fits && !w->stuck && !w->ph_barred && pf_phq_held(q, w->uid) == 0)
             s_lease(f, i, q);
     }
 }
@@ -123,7 +180,7 @@ void pf_fm_on_photons(pf_fm_t *f, int wi, const pf_msg_t *m)
         pf_fm_strike(f, wi, "PHOTONS without a PHOTON_REQ");
         return;
     }
-    if (!q || m->job != f->ph.job || f->job_ready) {
+    if (!q || m->job != f->ph.job) {
         f->sum->ph_stale++;
         pf_debug("dropped PHOTONS from %s: no photon pass of job %llu under way", w->name, (unsigned long long)m->job);
         return;
@@ -137,8 +194,10 @@ void pf_fm_on_photons(pf_fm_t *f, int wi, const pf_msg_t *m)
     }
     if (rc == PF_PHQ_DONE) {
         w->ph_batches++;
-        w->result_at = pf_now();
-        if (pf_phq_held(q, w->uid) == 0 && w->state == PF_W_HELLO)
+        w->ph_pass++;
+        if (!f->job_ready)
+            w->result_at = pf_now(); /* not while it holds tiles: the stall clock is theirs */
+        if (pf_phq_held(q, w->uid) == 0 && !f->job_ready && w->state == PF_W_HELLO)
             s_lease(f, wi, q); /* its next range, without waiting for the tick */
     }
 }
@@ -163,6 +222,7 @@ void pf_fm_photons_end(pf_fm_t *f)
         pf_framed_blob_free(&p->early_fb);
         return;
     }
+    s_strike_liars(f, p->phq);
     pf_phq_stats_t st;
     pf_phq_stats(p->phq, &st);
     __atomic_store_n(&p->phq_ready, 0, __ATOMIC_RELEASE);
@@ -178,15 +238,23 @@ void pf_fm_photons_end(pf_fm_t *f)
     sum->ph_stolen += st.stolen;
     sum->ph_emitted += st.emitted;
     sum->ph_trace_s += p->stats.trace_s;
-    char who[512];
+    sum->ph_checked += st.checked;
+    sum->ph_discarded += st.discarded;
+    char who[512], chk[160] = "";
     int n = 0;
     who[0] = 0;
-    for (int i = 0; i < f->reg.nw && n < (int)sizeof who - 80; i++)
-        if (f->reg.w[i].ph_batches)
-            n += snprintf(who + n, sizeof who - (size_t)n, ", %s %llu", f->reg.w[i].name,
-                          (unsigned long long)f->reg.w[i].ph_batches);
-    pf_info("photon pass: %u batches of %d photons, %u traced on the coordinator, %u on the workers%s; "
+    for (int i = 0; i < f->reg.nw; i++) {
+        pf_worker_t *w = &f->reg.w[i];
+        if (w->ph_pass && n < (int)sizeof who - 80)
+            n += snprintf(who + n, sizeof who - (size_t)n, ", %s %llu", w->name, (unsigned long long)w->ph_pass);
+        w->ph_pass = 0;
+    }
+    if (st.checked || st.mismatches)
+        snprintf(chk, sizeof chk, "; %llu worker batch%s checked here, %llu mismatch%s, %llu discarded",
+                 (unsigned long long)st.checked, st.checked == 1 ? "" : "es", (unsigned long long)st.mismatches,
+                 st.mismatches == 1 ? "" : "es", (unsigned long long)st.discarded);
+    pf_info("photon pass %d: %u batches of %d photons, %u traced on the coordinator, %u on the workers%s%s; "
             "%.2f Mphotons/s (%.2f s tracing)",
-            st.batches, PF_PHOTON_BATCH_BLOCKS * PF_PHOTON_BLOCK, st.local, st.remote, who,
+            p->pass + 1, st.batches, PF_PHOTON_BATCH_BLOCKS * PF_PHOTON_BLOCK, st.local, st.remote, who, chk,
             p->stats.trace_s > 0 ? (double)st.emitted / p->stats.trace_s / 1e6 : 0.0, p->stats.trace_s);
 }

@@ -10,6 +10,14 @@
  * a path), and rejects at most E. Whatever disagrees is refused (the caller
  * strikes the sender) and the batch is free again.
  *
+ * Spot checks: a worker's complete batch is drawn for a check when it
+ * arrives (S_CHK_WANT); the photon thread re-traces drawn batches when no
+ * free batch is left (before it steals leased ones: a lie found early
+ * re-issues less), and when every batch is in it draws one more batch of
+ * each worker that had none checked, so the merge never takes a worker's
+ * photons unchecked. A mismatch discards everything that worker returned
+ * this pass (the batch checked keeps the coordinator's trace).
+ *
  * Owns the table and the batches' photons until pf_phq_merge takes them.
  * Threads: all under q->mu; pf_phq_run traces with it unlocked. */
 #include "coordinator/ph_batches.h"
@@ -20,9 +28,14 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "base/hash.h"
 #include "base/log.h"
 
 enum { S_FREE = 0, S_LEASED, S_DONE };
+enum { S_CHK_NONE = 0, S_CHK_WANT, S_CHK_OK }; /* a worker's done batch: its check */
+
+#define S_MAX_BARRED 64 /* liars a pass remembers (more are refused by the farm's strikes anyway) */
+#define S_MAX_LIARS 16  /* liars queued for the event loop */
 
 #define S_LOCAL_RUN 4 /* free batches the photon thread takes at once */
 
@@ -33,6 +46,8 @@ typedef struct s_batch {
     uint32_t uid;           /* the lessee (S_LEASED), 0: none */
     double leased_at;
     pf_photon_batch_t res;  /* S_DONE: the result */
+    uint32_t done_uid;      /* S_DONE: the worker whose result it is, 0: traced here */
+    int check;              /* S_CHK_: a worker's result, drawn for a check */
     /* a worker's result coming in parts */
     pf_photon_t *recv;
     uint64_t total, got, cap, rejected, indirect;
@@ -47,6 +62,11 @@ struct pf_phq {
     s_batch *b;
     uint64_t max_global, max_caustic; /* stored photons a batch may hold */
     pf_phq_stats_t st;
+    uint64_t secret;        /* the per-run secret the checks are drawn with */
+    uint32_t one_in;        /* 0: no checks */
+    uint32_t barred[S_MAX_BARRED], nbarred;
+    uint32_t liar[S_MAX_LIARS], nliar;
+    char liar_why[S_MAX_LIARS][160];
 };
 
 /* Photons emitted in batch i. */
@@ -81,6 +101,29 @@ pf_phq_t *pf_phq_new(const pf_photon_tracer_t *tracer, int max_depth)
     return q;
 }
 
+void pf_phq_checks(pf_phq_t *q, uint64_t secret, uint32_t one_in)
+{
+    pthread_mutex_lock(&q->mu);
+    q->secret = secret;
+    q->one_in = one_in;
+    pthread_mutex_unlock(&q->mu);
+}
+
+/* The draw for batch i returned by uid: a hash only the coordinator can
+ * compute (the secret), different for the same batch from another worker. */
+static uint64_t s_draw(const pf_phq_t *q, uint32_t i, uint32_t uid)
+{
+    return pf_hash_u64(pf_hash_u64(pf_hash_u64(PF_HASH_INIT, q->secret), i), uid);
+}
+
+static int s_barred(const pf_phq_t *q, uint32_t uid)
+{
+    for (uint32_t k = 0; k < q->nbarred; k++)
+        if (q->barred[k] == uid)
+            return 1;
+    return 0;
+}
+
 static void s_drop_recv(s_batch *b)
 {
     free(b->recv);
@@ -104,13 +147,57 @@ void pf_phq_free(pf_phq_t **q_p)
     *q_p = NULL;
 }
 
-/* The batches the photon thread traces next: up to S_LOCAL_RUN consecutive
- * free ones (the threads share their blocks), else the oldest leased one it
- * is not tracing (*n = 1); UINT32_MAX: none left. */
-static uint32_t s_pick(pf_phq_t *q, uint32_t *n)
+/* Every batch is in: each worker with no batch checked gets one drawn
+ * (the lowest draw of its batches). Returns how many were drawn (0 also
+ * when memory is short: the sampled checks stand). */
+typedef struct s_cand {
+    uint32_t uid, idx;
+    uint64_t draw;
+    int check;
+} s_cand;
+
+static int s_cand_cmp(const void *a, const void *b)
 {
-    uint32_t oldest = UINT32_MAX;
+    const s_cand *x = a, *y = b;
+    if (x->uid != y->uid)
+        return x->uid < y->uid ? -1 : 1;
+    return x->draw < y->draw ? -1 : x->draw > y->draw;
+}
+
+static uint32_t s_draw_unchecked(pf_phq_t *q)
+{
+    s_cand *c = malloc((q->nb ? q->nb : 1) * sizeof *c);
+    if (!c)
+        return 0;
+    uint32_t n = 0, drawn = 0;
+    for (uint32_t i = 0; i < q->nb; i++)
+        if (q->b[i].state == S_DONE && q->b[i].done_uid)
+            c[n++] = (s_cand){ q->b[i].done_uid, i, s_draw(q, i, q->b[i].done_uid), q->b[i].check };
+    qsort(c, n, sizeof *c, s_cand_cmp);
+    for (uint32_t k = 0; k < n;) {
+        uint32_t e = k;
+        int any = 0;
+        while (e < n && c[e].uid == c[k].uid)
+            any |= c[e++].check != S_CHK_NONE;
+        if (!any) {
+            q->b[c[k].idx].check = S_CHK_WANT; /* its lowest draw */
+            drawn++;
+        }
+        k = e;
+    }
+    free(c);
+    return drawn;
+}
+
+/* The batches the photon thread traces next: up to S_LOCAL_RUN consecutive
+ * free ones (the threads share their blocks), else a worker's batch to
+ * check (*check = 1), else the oldest leased one it is not tracing
+ * (*n = 1); UINT32_MAX: none left. */
+static uint32_t s_pick(pf_phq_t *q, uint32_t *n, int *check)
+{
+    uint32_t oldest = UINT32_MAX, want = UINT32_MAX;
     *n = 1;
+    *check = 0;
     for (uint32_t i = 0; i < q->nb; i++) {
         s_batch *b = &q->b[i];
         if (b->state == S_FREE) {
@@ -118,10 +205,80 @@ static uint32_t s_pick(pf_phq_t *q, uint32_t *n)
                 (*n)++;
             return i;
         }
+        if (b->state == S_DONE && b->check == S_CHK_WANT && want == UINT32_MAX)
+            want = i;
         if (b->state == S_LEASED && !b->local && (oldest == UINT32_MAX || b->leased_at < q->b[oldest].leased_at))
             oldest = i;
     }
-    return oldest;
+    if (want == UINT32_MAX && oldest == UINT32_MAX && q->one_in && s_draw_unchecked(q))
+        return s_pick(q, n, check);
+    *check = want != UINT32_MAX;
+    return want != UINT32_MAX ? want : oldest;
+}
+
+/* Worker uid lied: barred from the pass, queued for the event loop, its
+ * leases revoked and every batch it returned discarded (free again). */
+static void s_liar(pf_phq_t *q, uint32_t uid, const char *why)
+{
+    if (q->nbarred < S_MAX_BARRED)
+        q->barred[q->nbarred++] = uid;
+    if (q->nliar < S_MAX_LIARS) {
+        q->liar[q->nliar] = uid;
+        snprintf(q->liar_why[q->nliar], sizeof q->liar_why[0], "%s", why);
+        q->nliar++;
+    }
+    q->st.mismatches++;
+    for (uint32_t j = 0; j < q->nb; j++) {
+        s_batch *c = &q->b[j];
+        if (c->state == S_LEASED && c->uid == uid) {
+            c->uid = 0;
+            s_drop_recv(c);
+            if (!c->local)
+                c->state = S_FREE;
+        } else if (c->state == S_DONE && c->done_uid == uid) {
+            free(c->res.p);
+            memset(&c->res, 0, sizeof c->res);
+            c->state = S_FREE;
+            c->done_uid = 0;
+            c->check = S_CHK_NONE;
+            q->ndone--;
+            q->st.remote--;
+            q->st.discarded++;
+        }
+    }
+}
+
+/* Re-traces worker batch i here and compares it bit for bit. 0, or the
+ * tracer's failure. */
+static int s_check(pf_phq_t *q, uint32_t i, int threads)
+{
+    volatile int never = 0;
+    pf_photon_batch_t mine;
+    int rc = pf_photon_trace_batches(q->tracer, i, 1, threads, &never, &mine);
+    if (rc != PF_OK)
+        return rc;
+    pthread_mutex_lock(&q->mu);
+    s_batch *b = &q->b[i];
+    q->st.checked++;
+    const pf_photon_batch_t *r = &b->res;
+    int same = r->n == mine.n && r->rejected == mine.rejected && r->indirect == mine.indirect &&
+               (mine.n == 0 || memcmp(r->p, mine.p, (size_t)mine.n * sizeof *mine.p) == 0);
+    if (same) {
+        b->check = S_CHK_OK;
+        free(mine.p);
+    } else {
+        char why[160];
+        snprintf(why, sizeof why, "photon batch %" PRIu32 " differs from the coordinator's trace (%" PRIu64 " photons "
+                 "returned, %" PRIu64 " traced here)", i, r->n, mine.n);
+        s_liar(q, b->done_uid, why);
+        /* This batch keeps the trace just made. */
+        b->state = S_DONE;
+        b->res = mine;
+        q->ndone++;
+        q->st.local++;
+    }
+    pthread_mutex_unlock(&q->mu);
+    return PF_OK;
 }
 
 int pf_phq_run(pf_phq_t *q, int threads)
@@ -129,11 +286,19 @@ int pf_phq_run(pf_phq_t *q, int threads)
     pf_photon_batch_t res[S_LOCAL_RUN];
     for (;;) {
         uint32_t n;
+        int check;
         pthread_mutex_lock(&q->mu);
-        uint32_t i = s_pick(q, &n);
+        uint32_t i = s_pick(q, &n, &check);
         if (i == UINT32_MAX) {
             pthread_mutex_unlock(&q->mu);
             return PF_OK;
+        }
+        if (check) {
+            pthread_mutex_unlock(&q->mu);
+            int rc = s_check(q, i, threads); /* a DONE batch: nobody else changes it */
+            if (rc != PF_OK)
+                return rc;
+            continue;
         }
         s_batch *b = &q->b[i];
         if (b->state == S_LEASED)
@@ -157,6 +322,8 @@ int pf_phq_run(pf_phq_t *q, int threads)
                 b[k].state = S_DONE;
                 b[k].res = res[k];
                 b[k].uid = 0;
+                b[k].done_uid = 0;
+                b[k].check = S_CHK_NONE;
                 s_drop_recv(&b[k]);
                 q->ndone++;
                 q->st.local++;
@@ -178,6 +345,8 @@ uint32_t pf_phq_lease(pf_phq_t *q, uint32_t uid, uint32_t count, double now, uin
     uint32_t n = 0, i = 0;
     while (i < q->nb && q->b[i].state != S_FREE)
         i++;
+    if (s_barred(q, uid))
+        i = q->nb;
     *first = i;
     for (; i < q->nb && n < count && q->b[i].state == S_FREE; i++, n++) {
         q->b[i].state = S_LEASED;
@@ -323,6 +492,8 @@ int pf_phq_on_photons(pf_phq_t *q, uint32_t uid, const pf_msg_photons_t *p, char
                 b->recv = NULL;
                 b->state = S_DONE;
                 b->abort = 1; /* a local trace of it stops */
+                b->done_uid = uid;
+                b->check = q->one_in && s_draw(q, i, uid) % q->one_in == 0 ? S_CHK_WANT : S_CHK_NONE;
                 q->ndone++;
                 q->st.remote++;
                 rc = PF_PHQ_DONE;
@@ -352,6 +523,29 @@ int pf_phq_merge(pf_phq_t *q, const pf_scene_t *scene, const pf_accel_t *accel, 
         free(res[i].p);
     free(res);
     return rc;
+}
+
+int pf_phq_take_liar(pf_phq_t *q, uint32_t *uid, char *why, size_t why_len)
+{
+    pthread_mutex_lock(&q->mu);
+    int got = q->nliar > 0;
+    if (got) {
+        *uid = q->liar[0];
+        snprintf(why, why_len, "%s", q->liar_why[0]);
+        q->nliar--;
+        memmove(q->liar, q->liar + 1, q->nliar * sizeof q->liar[0]);
+        memmove(q->liar_why, q->liar_why + 1, q->nliar * sizeof q->liar_why[0]);
+    }
+    pthread_mutex_unlock(&q->mu);
+    return got;
+}
+
+void pf_phq_progress(pf_phq_t *q, uint32_t *done, uint32_t *total)
+{
+    pthread_mutex_lock(&q->mu);
+    *done = q->ndone;
+    *total = q->nb;
+    pthread_mutex_unlock(&q->mu);
 }
 
 void pf_phq_stats(pf_phq_t *q, pf_phq_stats_t *out)

@@ -14,6 +14,15 @@
  * (pf_phq_expire). When every batch is done, pf_phq_merge joins them in batch
  * order and builds the maps: the same bits whoever traced what.
  *
+ * Spot checks (pf_phq_checks): the photon thread re-traces a sample of the
+ * batches workers returned and compares them bit for bit before the merge:
+ * each worker's batch with probability 1/one_in, drawn from a hash of a
+ * per-run secret (the workers cannot tell which), the batch and the worker,
+ * and, once every batch is in, one more of each worker that had none
+ * checked. A mismatch bars the worker from the pass (its leases revoked,
+ * every batch it returned discarded and traced again) and is queued for
+ * the event loop (pf_phq_take_liar), which strikes it.
+ *
  * Threads: every function takes the table's mutex; pf_phq_run traces
  * outside it. */
 #ifndef PF_PH_BATCHES_H
@@ -30,6 +39,14 @@ typedef struct pf_phq pf_phq_t;
  * memory is short. */
 pf_phq_t *pf_phq_new(const pf_photon_tracer_t *tracer, int max_depth);
 void pf_phq_free(pf_phq_t **q_p); /* NULL-safe; nulls *q_p */
+/* Turns spot checks on (before pf_phq_run): about one worker batch in
+ * one_in (0: no checks; 1: all), drawn with `secret`. */
+void pf_phq_checks(pf_phq_t *q, uint64_t secret, uint32_t one_in);
+/* A worker caught returning a batch unlike the coordinator's trace: 1 with
+ * its uid and a sentence (taken off the queue), 0 when there is none. */
+int pf_phq_take_liar(pf_phq_t *q, uint32_t *uid, char *why, size_t why_len);
+/* Batches done and batches in all (for the event loop's pacing). */
+void pf_phq_progress(pf_phq_t *q, uint32_t *done, uint32_t *total);
 
 /* The photon thread: traces batches (threads OpenMP threads) until every
  * batch is done, as above. 0, or PF_EINTERRUPTED (the process-wide cancel
@@ -37,7 +54,7 @@ void pf_phq_free(pf_phq_t **q_p); /* NULL-safe; nulls *q_p */
 int pf_phq_run(pf_phq_t *q, int threads);
 
 /* Leases up to `count` consecutive free batches to worker uid; *first gets
- * the first. Returns how many (0: none free). */
+ * the first. Returns how many (0: none free, or uid is barred). */
 uint32_t pf_phq_lease(pf_phq_t *q, uint32_t uid, uint32_t count, double now, uint32_t *first);
 /* Batches leased to uid and not yet done. */
 uint32_t pf_phq_held(pf_phq_t *q, uint32_t uid);
@@ -60,11 +77,14 @@ int pf_phq_on_photons(pf_phq_t *q, uint32_t uid, const pf_msg_photons_t *p, char
 int pf_phq_merge(pf_phq_t *q, const pf_scene_t *scene, const pf_accel_t *accel, const pf_settings_t *settings,
                  pf_photon_maps_t *maps, pf_photon_stats_t *stats);
 
-/* Who traced what: batches in all, by the coordinator, by workers; photons
- * emitted in all; stale results dropped; leases expired. */
+/* Who traced what: batches in all, by the coordinator, by workers (the
+ * results kept); photons emitted in all; stale results dropped; leases
+ * expired; workers' batches re-traced here to check them, mismatches, and
+ * workers' batches discarded after a mismatch. */
 typedef struct pf_phq_stats {
     uint32_t batches, local, remote;
     uint64_t emitted, stale, expired, stolen;
+    uint64_t checked, mismatches, discarded;
 } pf_phq_stats_t;
 void pf_phq_stats(pf_phq_t *q, pf_phq_stats_t *out);
 

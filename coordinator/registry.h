@@ -45,6 +45,8 @@ typedef struct pf_worker {
     int checked;        /* one of its results was picked for a check on another worker (verify.c) */
     int ph_asked;       /* it was sent a PHOTON_REQ: it may fetch the scene blob before its JOB */
     uint64_t ph_batches; /* photon batches of its that counted */
+    uint64_t ph_pass;    /* of them, the current photon pass's (the pass's log line) */
+    int ph_barred;       /* returned a photon batch unlike the coordinator's trace: no more batches this job */
 } pf_worker_t;
 
 typedef struct pf_registry {

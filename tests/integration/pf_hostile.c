@@ -30,6 +30,11 @@
  *               whose pixels are made up (a constant 0.25, nothing
  *               rendered), heartbeating; until BYE, JOB_END or HOLD seconds.
  *               Only a coordinator that checks results catches it.
+ *   photon-liar [HOLD=60]  HELLO, then answers every PHOTON_REQ at once
+ *               with a PHOTONS per batch that claims the batch stored no
+ *               photon and rejected none (well-formed, within the plan's
+ *               bounds: only re-tracing the batch shows the lie); it never
+ *               says READY (no tile); until BYE, JOB_END or HOLD seconds.
  *   evil-name         HELLO under a name with a newline and a terminal
  *               escape sequence ("evil\nname\x1b[31mred"), waits for the
  *               JOB, then BYE with a reason that has them too.
@@ -390,6 +395,43 @@ static int s_liar(s_peer *p, double hold)
     return 0;
 }
 
+static int s_photon_liar(s_peer *p, double hold)
+{
+    if (s_open(p, 0) != 0 || s_hello(p, "hostile-photons", 1) != 0)
+        return 3;
+    double end = pf_now() + hold, next_hb = 0;
+    uint64_t lies = 0, reqs = 0;
+    const char *ended = "its time";
+    pf_msg_photon_t none = { { 0, 0, 0 }, { 0, 0, 0 }, 0, 0 };
+    while (pf_now() < end) {
+        s_heartbeat_due(p, &next_hb, lies);
+        pf_msg_t m;
+        if (s_recv(p, &m, 20) != 0)
+            continue;
+        if (m.type == PF_MSG_WELCOME) {
+            p->hb_ms = m.u.welcome.heartbeat_ms;
+            p->uid = m.u.welcome.worker_id;
+        } else if (m.type == PF_MSG_PHOTON_REQ) {
+            reqs++;
+            for (uint32_t k = 0; k < m.u.photon_req.count; k++) {
+                pf_msg_t r;
+                memset(&r, 0, sizeof r);
+                r.type = PF_MSG_PHOTONS;
+                r.job = m.job;
+                r.u.photons = (pf_msg_photons_t){ m.u.photon_req.first + k, 0, 0, 0, 0, 0, NULL, &none };
+                if (s_send(p, &r) == 0)
+                    lies++;
+            }
+        } else if (m.type == PF_MSG_BYE || m.type == PF_MSG_JOB_END) {
+            ended = m.type == PF_MSG_BYE ? "BYE" : "JOB_END";
+            break;
+        }
+    }
+    printf("pf_hostile photon-liar: %llu PHOTON_REQs, %llu empty batches sent; ended by %s\n",
+           (unsigned long long)reqs, (unsigned long long)lies, ended);
+    return 0;
+}
+
 static int s_evil_name(s_peer *p)
 {
     uint64_t jobid;
@@ -412,7 +454,7 @@ int main(int argc, char **argv)
 {
     if (argc < 3 || argc > 5) {
         fprintf(stderr, "usage: pf_hostile ENDPOINT blob-flood [N [HOLD_S]] | hoard [HOLD_S] | churn [N] | "
-                        "forge [WAIT_S] | liar [HOLD_S] | evil-name\n");
+                        "forge [WAIT_S] | liar [HOLD_S] | photon-liar [HOLD_S] | evil-name\n");
         return 2;
     }
     const char *mode = argv[2];
@@ -437,6 +479,8 @@ int main(int argc, char **argv)
         rc = s_forge(&p, a >= 0 ? a : 2.0);
     else if (!strcmp(mode, "liar"))
         rc = s_liar(&p, a > 0 ? a : 60.0);
+    else if (!strcmp(mode, "photon-liar"))
+        rc = s_photon_liar(&p, a > 0 ? a : 60.0);
     else if (!strcmp(mode, "evil-name"))
         rc = s_evil_name(&p);
     else {

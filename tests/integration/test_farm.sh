@@ -30,6 +30,7 @@
 #     serves a second coordinator on the same port;
 # 10. progressive passes (--passes 4): two cluster workers, one killed -9
 #     in the second pass; the image is the in-process one's, bit for bit;
+#     every pass's photons are spread (the log says how, pass by pass);
 # 11. kill -9 of the coordinator, then --resume from its checkpoint: mid-way
 #     through a one-pass render's tiles, and between progressive passes; the
 #     images are the uninterrupted ones, bit for bit; a checkpoint of other
@@ -622,6 +623,8 @@ t10() {
     if completed "10: four passes complete after kill -9 of a worker" "$T/prog_coord.err"; then
         check "10: the image of four passes is bit-identical to in-process" same "$T/prog_coord.pfm" "$T/ref_prog.pfm"
         check "10: the log has the fourth pass" logged "$T/prog_coord.err" "pass 4: 6 spp"
+        check "10: each pass's photon pass says how it was spread" logged "$T/prog_coord.err" \
+            "photon pass 4: [0-9]+ batches of [0-9]+ photons, [0-9]+ traced on the coordinator, [0-9]+ on the workers"
         summary_note 10 "$T/prog_coord.err"
     fi
     stop "$wa" "$wb"

@@ -35,6 +35,13 @@
 #     summary says so, and the image is bit-identical to in-process.
 #  f. a HELLO name and a BYE reason with a newline and a terminal escape
 #     sequence reach the coordinator's log escaped, never raw.
+#  g. a photon liar: a worker that answers every PHOTON_REQ with batches
+#     that stored no photon (well-formed, inside the plan's bounds), beside
+#     an honest local worker, over two progressive passes. The coordinator's
+#     spot check (at least one batch of each worker a pass, re-traced here)
+#     catches it: a strike naming the batch, every batch it returned is
+#     traced again, and the image is bit-identical to in-process. Without
+#     the checks the maps lose those batches' photons and the image differs.
 #
 # Every wait is bounded and every process this script starts is killed on
 # exit. The heartbeat is 200 ms (a silent worker is dead after 0.8 s). The
@@ -144,6 +151,10 @@ HOARD=(--size 128x128 --spp 16 --photons 50000 --caustic-photons 50000 --gather 
 # shellcheck disable=SC2034
 SMALL=(--size 96x96 --spp 4 --photons 50000 --caustic-photons 50000 --gather 8 --tile 16)
 # shellcheck disable=SC2034
+# 8 global batches of 65,536 photons; the photon liar connects first, so
+# it is leased some of them.
+PHOT=(--size 64x64 --spp 2 --photons 500000 --caustic-photons 50000 --gather 8 --tile 16 --passes 2)
+# shellcheck disable=SC2034
 BIG=(--size 192x192 --spp 25 --photons 50000 --caustic-photons 50000 --gather 8 --tile 16)
 
 # coordinator NAME PORT SETTINGS_VAR [extra...]: a cluster coordinator on
@@ -173,7 +184,7 @@ completed() {
 references() {
     echo "# references: in-process renders (--workers 0)"
     local r
-    for r in FLOOD HOARD SMALL BIG; do
+    for r in FLOOD HOARD SMALL BIG PHOT; do
         local -n rs=$r
         if ! timeout 120 "$PF" render "$SPHERES" -o "$T/ref_$r.png" --hdr "$T/ref_$r.pfm" "${rs[@]}" --threads 2 \
             --workers 0 >"$T/ref_$r.out" 2>"$T/ref_$r.err"; then
@@ -394,10 +405,41 @@ tf() {
     stop "$ww" "$evil"
 }
 
+# ---- g. a photon liar ----------------------------------------------------------------------
+
+tg() {
+    echo "# g. a worker that returns empty photon batches, beside an honest local worker"
+    local port coord liar lies
+    port=$(free_port)
+    start phliar "$HOS" "tcp://127.0.0.1:$port" photon-liar 120
+    liar=$LASTPID
+    sleep 0.2
+    coordinator phliar_coord "$port" PHOT --workers 1 --threads 1
+    coord=$LASTPID
+    wait_exit "$coord" 120
+    if completed "g: the render completes" "$T/phliar_coord.err"; then
+        check "g: the image is bit-identical to in-process" same "$T/phliar_coord.pfm" "$T/ref_PHOT.pfm"
+        check "g: the lie is a strike that names the batch" has "$T/phliar_coord.err" \
+            "hostile-photons \(id [0-9]+\): strike 1 of [0-9]+: photon batch [0-9]+ differs from the coordinator's trace"
+        check "g: the pass's log line counts the mismatch" has "$T/phliar_coord.err" \
+            'photon pass 1: .*worker batch(es)? checked here, 1 mismatch, [1-9][0-9]* discarded'
+        check "g: the summary counts it" has "$T/phliar_coord.err" \
+            'summary: photon spot checks: [0-9]+ worker batch(es)? traced again here, 1 mismatch'
+        check "g: the liar keeps no photon batch" hasnt "$T/phliar_coord.err" \
+            'summary: worker hostile-photons rendered [0-9]+ tiles, traced [1-9]'
+        note "g: $(grep -oE 'photon pass 1: .*' "$T/phliar_coord.err" | tail -n 1)"
+    fi
+    wait_exit "$liar" 10
+    lies=$(grep -oE '[0-9]+ empty batches' "$T/phliar.out" | grep -oE '^[0-9]+')
+    check "g: the liar was leased batches and lied (${lies:-0} empty batches)" ge "${lies:-0}" 1
+    note "g: $(sed 's/^pf_hostile //' "$T/phliar.out")"
+    stop "$liar"
+}
+
 # ---- run --------------------------------------------------------------------------------
 
 if references; then
-    for n in ${PF_HOSTILE_ONLY:-a b c d e f}; do
+    for n in ${PF_HOSTILE_ONLY:-a b c d e f g}; do
         "t$n"
     done
 fi

@@ -4,7 +4,11 @@
  * coordinator's batch table (coordinator/ph_batches.c) fed with a worker's
  * results in parts (through the PHOTONS codec), a lease never answered
  * (stolen by the photon thread), a stale result, a duplicate and parts that
- * contradict each other. Cornell spheres: global and caustic batches. */
+ * contradict each other. Cornell spheres: global and caustic batches.
+ * Spot checks: a worker whose batch differs by one bit from the
+ * coordinator's trace is caught even when the sample (1 in 2^30) would
+ * pass it by (each worker gets one batch checked a pass), barred, its
+ * batches traced again, and the maps are still the in-process ones. */
 #include <stdlib.h>
 #include <string.h>
 
@@ -25,6 +29,8 @@ static int s_same_maps(const pf_photon_maps_t *a, const pf_photon_maps_t *b)
     return same;
 }
 
+static int s_corrupt; /* s_feed flips a bit of the batch's first photon's power */
+
 /* Batch `batch` as a worker sends it: PHOTONS parts of `part` photons,
  * encoded and decoded, fed to the table as worker uid. Returns the last
  * verdict; first_at: the part offset to forge (or UINT64_MAX). */
@@ -40,6 +46,12 @@ static int s_feed(pf_phq_t *q, const pf_photon_tracer_t *t, uint32_t batch, uint
         memcpy(ph[i].power, b.p[i].power, sizeof ph[i].power);
         ph[i].dir = b.p[i].dir;
         ph[i].normal = b.p[i].normal;
+    }
+    if (s_corrupt && b.n) {
+        uint32_t bits;
+        memcpy(&bits, &ph[0].power[0], sizeof bits);
+        bits ^= 1u; /* the last bit of the mantissa: still finite, still >= 0 */
+        memcpy(&ph[0].power[0], &bits, sizeof bits);
     }
     int verdict = PF_PHQ_PART;
     pf_buf_t enc = { 0 };
@@ -131,6 +143,54 @@ static void s_test(const pf_scene_t *scene)
     memset(&st_q, 0, sizeof st_q);
     CHECK(pf_phq_merge(q, scene, fr.accel, &s, &mq, &st_q) == PF_OK, "table merge");
     CHECK(s_same_maps(&ref, &mq), "the table's maps are the in-process ones, bit for bit");
+    pf_phq_free(&q);
+
+    /* Spot checks: worker 7 returns batches 0 and 1 honestly, worker 8
+     * batch 2 with one bit flipped. A sample of 1 in 2^30 draws neither,
+     * but each worker gets one batch checked once all are in. */
+    pf_photon_maps_t mc;
+    q = pf_phq_new(t, s.photon_max_depth);
+    pf_phq_checks(q, 0x5eed5eedULL, 1u << 30);
+    CHECK(pf_phq_lease(q, 7, 2, 0.0, &first) == 2 && first == 0, "lease batches 0, 1 to 7");
+    CHECK(pf_phq_lease(q, 8, 1, 0.0, &first) == 1 && first == 2, "lease batch 2 to 8");
+    CHECK(s_feed(q, t, 0, 7, 5000, UINT64_MAX) == PF_PHQ_DONE && s_feed(q, t, 1, 7, 5000, UINT64_MAX) == PF_PHQ_DONE,
+          "7's batches are in");
+    s_corrupt = 1;
+    CHECK(s_feed(q, t, 2, 8, 5000, UINT64_MAX) == PF_PHQ_DONE, "8's forged batch passes the structural checks");
+    s_corrupt = 0;
+    CHECK(pf_phq_run(q, 2) == PF_OK, "the photon thread traces the rest and checks");
+    pf_phq_stats(q, &st);
+    uint32_t liar = 0;
+    char why[160] = "";
+    CHECK(pf_phq_take_liar(q, &liar, why, sizeof why) == 1 && liar == 8, "worker 8 is named (%u: %s)", liar, why);
+    CHECK(pf_phq_take_liar(q, &liar, why, sizeof why) == 0, "and only worker 8");
+    CHECK(strstr(why, "photon batch 2 differs") != NULL, "why names the batch: %s", why);
+    CHECK(st.checked == 2 && st.mismatches == 1 && st.discarded == 1 && st.remote == 2 && st.local == nb - 2,
+          "stats: %llu checked, %llu mismatches, %llu discarded, %u remote, %u local", (unsigned long long)st.checked,
+          (unsigned long long)st.mismatches, (unsigned long long)st.discarded, st.remote, st.local);
+    CHECK(pf_phq_lease(q, 8, 1, 0.0, &first) == 0, "the liar is barred");
+    memset(&st_q, 0, sizeof st_q);
+    CHECK(pf_phq_merge(q, scene, fr.accel, &s, &mc, &st_q) == PF_OK, "checked table merge");
+    CHECK(s_same_maps(&ref, &mc), "after the lie the maps are the in-process ones, bit for bit");
+    pf_photon_maps_free(&mc);
+    pf_phq_free(&q);
+
+    /* Every batch checked (1 in 1): the liar's two batches both discarded. */
+    q = pf_phq_new(t, s.photon_max_depth);
+    pf_phq_checks(q, 1, 1);
+    CHECK(pf_phq_lease(q, 8, 2, 0.0, &first) == 2 && first == 0, "lease batches 0, 1 to 8");
+    s_corrupt = 1;
+    CHECK(s_feed(q, t, 0, 8, 5000, UINT64_MAX) == PF_PHQ_DONE, "8's forged batch 0");
+    s_corrupt = 0;
+    CHECK(s_feed(q, t, 1, 8, 5000, UINT64_MAX) == PF_PHQ_DONE, "8's honest batch 1");
+    CHECK(pf_phq_run(q, 2) == PF_OK, "the photon thread traces and checks");
+    pf_phq_stats(q, &st);
+    CHECK(st.mismatches == 1 && st.discarded == 2 && st.remote == 0 && st.local == nb,
+          "stats: %llu mismatches, %llu discarded, %u remote", (unsigned long long)st.mismatches,
+          (unsigned long long)st.discarded, st.remote);
+    CHECK(pf_phq_merge(q, scene, fr.accel, &s, &mc, &st_q) == PF_OK && s_same_maps(&ref, &mc),
+          "the maps are the in-process ones");
+    pf_photon_maps_free(&mc);
     pf_phq_free(&q);
     pf_photon_tracer_free(&t);
     pf_photon_maps_free(&ref);
