@@ -31,8 +31,12 @@
  *   -clamp on clamps; the others are skipped). The image is read when the
  *   statement is, and a bad one is an error naming it and this file's line
  *   (a missing one is a warning: Kd stands in).
- *   Other maps (map_Ks, map_Ns, map_d, map_Ka, bump, disp, decal, refl, norm,
- *   ...) are not rendered: one warning per kind at the end, with the count and
+ *   bump / map_Bump file, norm file: a bump map (heights in the image's
+ *   first channel, linear, times the -bm multiplier, in world units as
+ *   pbrt's "displacement") and a tangent-space normal map (linear RGB) for
+ *   any kind of material (accel/shading.h); the same options as map_Kd.
+ *   Other maps (map_Ks, map_Ns, map_d, map_Ka, disp, decal, refl, ...) are
+ *   not rendered: one warning per kind at the end, with the count and
  *   the first line. Ignored without a word: Ka, sharpness.
  *   Other statements are skipped with one warning per keyword.
  *
@@ -66,6 +70,7 @@ typedef struct s_mtl {
     int has_kd, has_ks, has_ke, has_tf, has_ns, has_ni, has_d;
     int illum; /* -1 when absent */
     uint32_t kd_tex; /* map_Kd's texture ref, or 0 */
+    uint32_t bump_tex, norm_tex; /* bump / map_Bump's and norm's texture refs, or 0 */
 } s_mtl_t;
 
 #define S_MAX_WARNED 32
@@ -203,6 +208,8 @@ static int s_finish(s_ctx_t *c, const s_mtl_t *s)
     }
     if (s->kd_tex && m.type == PF_MAT_DIFFUSE)
         m.kd_tex = s->kd_tex;
+    m.bump_tex = s->bump_tex; /* any kind: they bend the shading normal */
+    m.normal_tex = s->norm_tex;
     if (pf_reserve((void **)&c->done, &c->cap_done, c->ndone + 1, sizeof *c->done))
         return pf_error_set(c->err, PF_ENOMEM, c->path, s->line, "out of memory");
     c->done[c->ndone++] = m;
@@ -281,9 +288,13 @@ static int s_map_option(const char *opt, size_t n)
     return -1;
 }
 
-/* map_Kd [options] file: reads the image into a scene texture. */
-static int s_map_kd(s_ctx_t *c, const char *p)
+/* map_Kd, bump / map_Bump or norm [options] file (which 0, 1, 2): reads
+ * the image into a scene texture (-bm, the bump multiplier, its scale; a
+ * bump or normal map is linear: heights and directions, not colours). */
+static int s_map_kd(s_ctx_t *c, const char *p, int which)
 {
+    static const char *const kws[3] = { "map_Kd", "bump", "norm" };
+    const char *kw = kws[which];
     pf_texture_t t = pf_texture_constant(c->cur.name, pf_v3s(0.0f));
     for (;;) {
         p = pf_text_skip_ws(p);
@@ -294,7 +305,7 @@ static int s_map_kd(s_ctx_t *c, const char *p)
             p++;
         int nargs = s_map_option(opt, (size_t)(p - opt));
         if (nargs < 0)
-            return pf_error_set(c->err, PF_EPARSE, c->path, c->line, "map_Kd: unknown option '%.*s'",
+            return pf_error_set(c->err, PF_EPARSE, c->path, c->line, "%s: unknown option '%.*s'", kw,
                                 (int)(p - opt), opt);
         if ((size_t)(p - opt) == 6 && strncmp(opt, "-clamp", 6) == 0) {
             p = pf_text_skip_ws(p);
@@ -318,6 +329,8 @@ static int s_map_kd(s_ctx_t *c, const char *p)
         if ((size_t)(p - opt) >= 2 && opt[1] == 's' && pf_text_is_delim(opt[2]) && got >= 1) {
             t.su = v[0];
             t.sv = got >= 2 ? v[1] : 1.0f;
+        } else if (which == 1 && (size_t)(p - opt) >= 3 && !strncmp(opt, "-bm", 3) && got >= 1) {
+            t.scale = v[0];
         } else if (opt[1] == 'o' && pf_text_is_delim(opt[2]) && got >= 1) {
             t.du = v[0];
             t.dv = v[1];
@@ -333,18 +346,19 @@ static int s_map_kd(s_ctx_t *c, const char *p)
     size_t n;
     p = pf_text_rest(p, &n);
     if (n == 0)
-        return pf_error_set(c->err, PF_EPARSE, c->path, c->line, "map_Kd needs a file name");
+        return pf_error_set(c->err, PF_EPARSE, c->path, c->line, "%s needs a file name", kw);
     char path[2048];
     const char *slash = strrchr(c->path, '/');
     int dirlen = slash && p[0] != '/' ? (int)(slash - c->path + 1) : 0;
     if (snprintf(path, sizeof path, "%.*s%.*s", dirlen, c->path, (int)n, p) >= (int)sizeof path)
-        return pf_error_set(c->err, PF_EPARSE, c->path, c->line, "map_Kd: path too long");
+        return pf_error_set(c->err, PF_EPARSE, c->path, c->line, "%s: path too long", kw);
     pf_error_t e = { { 0 } };
-    int ref = pf_texture_load_image(c->scene, path, &t, PF_TEXENC_DEFAULT, c->path, c->line, &e);
+    int ref = pf_texture_load_image(c->scene, path, &t, which ? PF_TEXENC_LINEAR : PF_TEXENC_DEFAULT, c->path,
+                                    c->line, &e);
     if (ref == PF_EIO) {
         /* A missing image, like a missing MTL file, is common in downloaded
          * models and not worth failing the scene over. */
-        pf_warn("%s; Kd stands in", e.msg);
+        pf_warn("%s; %s", e.msg, which ? "the surface stays unbent" : "Kd stands in");
         return PF_OK;
     }
     if (ref < 0) {
@@ -352,7 +366,7 @@ static int s_map_kd(s_ctx_t *c, const char *p)
             *c->err = e;
         return ref;
     }
-    c->cur.kd_tex = (uint32_t)ref;
+    *(which == 0 ? &c->cur.kd_tex : which == 1 ? &c->cur.bump_tex : &c->cur.norm_tex) = (uint32_t)ref;
     return PF_OK;
 }
 
@@ -368,7 +382,12 @@ static int s_statement(void *arg, const char *kw, int kwlen, const char *p)
     if (S_KW("map_Kd")) {
         if (!c->have)
             return pf_error_set(c->err, PF_EPARSE, c->path, c->line, "map_Kd before any newmtl");
-        return s_map_kd(c, p);
+        return s_map_kd(c, p, 0);
+    }
+    if (S_KW("bump") || S_KW("map_Bump") || S_KW("norm")) {
+        if (!c->have)
+            return pf_error_set(c->err, PF_EPARSE, c->path, c->line, "%.*s before any newmtl", kwlen, kw);
+        return s_map_kd(c, p, S_KW("norm") ? 2 : 1);
     }
     if ((kwlen > 4 && strncasecmp(kw, "map_", 4) == 0) || S_KW("bump") || S_KW("disp") || S_KW("decal") ||
         S_KW("refl") || S_KW("norm")) {
@@ -450,7 +469,7 @@ int pf_mtl_load(pf_scene_t *scene, const char *path, pf_error_t *err)
     if (rc == PF_OK)
         rc = s_commit(&c); /* nothing reaches the scene from a file with an error */
     for (int i = 0; rc == PF_OK && i < c.nmaps; i++)
-        pf_warn("%s:%d: %s is not rendered (%u statement%s in this file; only map_Kd is)", path, c.maps[i].line,
+        pf_warn("%s:%d: %s is not rendered (%u statement%s in this file; only map_Kd, bump and norm are)", path, c.maps[i].line,
                 c.maps[i].kw, c.maps[i].count, c.maps[i].count == 1 ? "" : "s");
     free(c.done);
     fclose(f);

@@ -18,7 +18,7 @@
  * textures, the settings the pixel filter (filter_box, filter_tent); 8:
  * lights gained map, and the environment maps follow them. Older blobs are
  * refused. */
-#define PF_SCENEBLOB_VERSION 8
+#define PF_SCENEBLOB_VERSION 9
 
 /* Serializes a finalized scene into out (reset first). 0 or PF_ENOMEM. */
 int pf_sceneblob_write(const pf_scene_t *scene, pf_buf_t *out);

@@ -378,10 +378,14 @@ static int s_check_textures(pf_scene_t *self, pf_error_t *err)
             if (!isfinite(t->pxf[k]))
                 t->pxf[k] = 0.0f;
     }
-    for (size_t i = 0; i < self->nmats; i++)
-        if (self->mats[i].kd_tex > self->ntexs)
-            return pf_error_set(err, PF_EPARSE, file, 0, "material '%s': texture %u out of range (%zu textures)",
-                                self->mats[i].name, (unsigned)self->mats[i].kd_tex, self->ntexs);
+    for (size_t i = 0; i < self->nmats; i++) {
+        const pf_material_t *m = &self->mats[i];
+        uint32_t refs[5] = { m->kd_tex, m->refl_tex, m->rough_tex, m->normal_tex, m->bump_tex };
+        for (int k = 0; k < 5; k++)
+            if (refs[k] > self->ntexs)
+                return pf_error_set(err, PF_EPARSE, file, 0, "material '%s': texture %u out of range (%zu textures)",
+                                    m->name, (unsigned)refs[k], self->ntexs);
+    }
     for (size_t m = 0; m < self->nmeshes; m++) {
         pf_mesh_t *mesh = &self->meshes[m];
         if (mesh->alpha_tex > self->ntexs)

@@ -44,6 +44,13 @@ typedef struct pf_material {
                       * (pbrt-v4's layered BSDF, default 0.01 there); 0: lossless */
     pf_vec3 le;  /* emitted radiance, one-sided */
     uint32_t kd_tex; /* 1 + index into pf_scene_t.texs: kd is that texture at the hit's uv; 0: kd as is */
+    /* Textured slots beyond kd (accel/surface.h resolves them at a hit; 0: none): */
+    uint32_t refl_tex;   /* CONDUCTOR: pbrt-v4's reflectance form, ks = the texture, eta 1, k from ks */
+    uint32_t rough_tex;  /* CONDUCTOR, COATED: roughness texture (first channel); alpha = sqrt of it when
+                          * rough_remap, else the value itself, clamped to [0, 1] */
+    uint32_t rough_remap;
+    uint32_t normal_tex; /* tangent-space normal map (linear RGB, n = 2 c - 1 in the (dpdu, n x dpdu, n) frame) */
+    uint32_t bump_tex;   /* displacement (first channel, world units): bump mapping (accel/shading.h) */
 } pf_material_t;
 
 /* pbrt-v4's "reflectance" form of a conductor: eta = 1 and this k, which

@@ -311,7 +311,7 @@ static s_offsets_t s_walk(const uint8_t *d)
             o.mat1_type = at, o.mat1_kd_tex = at + 1 + 56 + 28 + 4; /* after eta, k, alpha, thickness */
         if (i == 4)
             o.mat4_eta = at + 1 + 56;
-        at += 1 + 56 + 36;
+        at += 1 + 56 + 36 + 20; /* and refl_tex, rough_tex, rough_remap, normal_tex, bump_tex */
     }
     o.nmeshes = at;
     uint32_t nmesh = d[at];
@@ -394,13 +394,14 @@ static void test_scene_blob(void)
 
     const s_spatch_t patches[] = {
         { 0, 1, 'X', 0, "bad magic", "magic" },
-        { 4, 2, 9, 0, "format version 9", "version" },
-        { 4, 2, 2, 0, "format version 2, this build reads 8", "version 2 (before the lens)" },
-        { 4, 2, 3, 0, "format version 3, this build reads 8", "version 3 (before the conductor)" },
-        { 4, 2, 4, 0, "format version 4, this build reads 8", "version 4 (before the thin dielectric)" },
-        { 4, 2, 5, 0, "format version 5, this build reads 8", "version 5 (before the distant light)" },
-        { 4, 2, 6, 0, "format version 6, this build reads 8", "version 6 (before the coat and the textures)" },
-        { 4, 2, 7, 0, "format version 7, this build reads 8", "version 7 (before the environment maps)" },
+        { 4, 2, 10, 0, "format version 10", "version" },
+        { 4, 2, 2, 0, "format version 2, this build reads 9", "version 2 (before the lens)" },
+        { 4, 2, 3, 0, "format version 3, this build reads 9", "version 3 (before the conductor)" },
+        { 4, 2, 4, 0, "format version 4, this build reads 9", "version 4 (before the thin dielectric)" },
+        { 4, 2, 5, 0, "format version 5, this build reads 9", "version 5 (before the distant light)" },
+        { 4, 2, 6, 0, "format version 6, this build reads 9", "version 6 (before the coat and the textures)" },
+        { 4, 2, 7, 0, "format version 7, this build reads 9", "version 7 (before the environment maps)" },
+        { 4, 2, 8, 0, "format version 8, this build reads 9", "version 8 (before the normal and bump maps)" },
         { o.reserved, 2, 1, 0, "reserved", "reserved field" },
         { o.has_camera, 1, 2, 0, "has_camera", "has_camera 2" },
         { o.has_camera + 1, -4, 0, NAN, "camera pos is not a finite number", "camera NaN" },
@@ -432,6 +433,8 @@ static void test_scene_blob(void)
         { o.mesh0_has_nrm, 1, 3, 0, "has_normals", "has_normals 3" },
         { o.mesh0_has_uv, 1, 2, 0, "has_uv 2", "has_uv 2" },
         { o.mat1_kd_tex, 4, 1, 0, "texture 1 out of range (0 textures)", "kd_tex without textures (finalize)" },
+        { o.mat1_kd_tex + 16, 4, 1, 0, "texture 1 out of range (0 textures)", "normal_tex without textures (finalize)" },
+        { o.mat1_kd_tex + 20, 4, 2, 0, "texture 2 out of range (0 textures)", "bump_tex without textures (finalize)" },
         { o.ntexs, 4, 0x10000000u, 0, "textures need at least", "texture count" },
         { o.mesh0_pos + 4, -4, 0, NAN, "positions is not a finite", "NaN position" },
         { o.mesh0_idx + 4, 4, 4, 0, "vertex index 4 is out of range", "vertex index" },
