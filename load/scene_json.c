@@ -235,7 +235,8 @@ static int s_coated(s_ctx_t *c, const cJSON *m, pf_material_t *mat)
 static int s_material(s_ctx_t *c, const cJSON *m)
 {
     static const char *const keys[] = { "name", "type", "kd", "ks", "ns", "kt", "ior", "emission",
-                                        "eta", "k", "reflectance", "roughness", "thickness", NULL };
+                                        "eta", "k", "reflectance", "roughness", "thickness",
+                                        "normal_map", "bump", "bump_scale", NULL };
     const char *what = "material";
     int rc = pf_json_check_object(c, m, what, keys);
     const cJSON *vname = NULL, *v;
@@ -298,7 +299,8 @@ static int s_material(s_ctx_t *c, const cJSON *m)
                          type);
     }
     for (const cJSON *k = m->child; k; k = k->next) {
-        if (strcmp(k->string, "name") == 0 || strcmp(k->string, "type") == 0 || strcmp(k->string, "comment") == 0)
+        if (strcmp(k->string, "name") == 0 || strcmp(k->string, "type") == 0 || strcmp(k->string, "comment") == 0 ||
+            pf_json_is_map_key(k->string))
             continue;
         int ok = 0;
         for (const char *const *p = valid; *p && !ok; p++)
@@ -329,6 +331,8 @@ static int s_material(s_ctx_t *c, const cJSON *m)
     if (mat.type == PF_MAT_CONDUCTOR && (rc = s_conductor(c, m, &mat)))
         return rc;
     if ((mat.type == PF_MAT_COATED || mat.type == PF_MAT_GLASS) && (rc = s_coated(c, m, &mat)))
+        return rc;
+    if ((rc = pf_json_maps(c, m, &mat)))
         return rc;
     /* A diffuse surface reflects kd + ks in total; more than 1 would create
      * energy and break the photon tracer's Russian roulette. */

@@ -399,6 +399,103 @@ static void s_test_mtl(void)
     pf_scene_destroy(&sc);
 }
 
+/* pbrt-v4: "string normalmap", "texture displacement", roughness and
+ * reflectance textures on conductor and coateddiffuse, read into the slots
+ * without warnings. */
+static void s_test_pbrt(void)
+{
+    char p[512];
+    uint8_t px[2 * 2 * 3] = { 128, 128, 255, 128, 128, 255, 200, 128, 230, 128, 60, 230 };
+    snprintf(p, sizeof p, "%s/nm.png", s_dir);
+    CHECK(stbi_write_png(p, 2, 2, 3, px, 6));
+    snprintf(p, sizeof p, "%s/m.pbrt", s_dir);
+    FILE *f = fopen(p, "w");
+    fputs("LookAt 0 10 0  0 0 0  0 0 -1\nCamera \"perspective\" \"float fov\" 10\nWorldBegin\n"
+          "LightSource \"infinite\" \"rgb L\" [1 1 1]\n"
+          "Texture \"h\" \"float\" \"imagemap\" \"string filename\" \"nm.png\"\n"
+          "Texture \"r\" \"float\" \"checkerboard\" \"float tex1\" 0.04 \"float tex2\" 0.25\n"
+          "Texture \"c\" \"spectrum\" \"checkerboard\" \"rgb tex1\" [0.9 0.5 0.2] \"rgb tex2\" [0.3 0.3 0.3]\n"
+          "MakeNamedMaterial \"bumped\" \"string type\" \"diffuse\" \"texture displacement\" \"h\"\n"
+          "MakeNamedMaterial \"mapped\" \"string type\" \"coateddiffuse\" \"string normalmap\" \"nm.png\"\n"
+          "  \"texture reflectance\" \"c\" \"texture roughness\" \"r\"\n"
+          "MakeNamedMaterial \"metal\" \"string type\" \"conductor\" \"texture reflectance\" \"c\"\n"
+          "  \"texture uroughness\" \"r\" \"float vroughness\" 0.1 \"bool remaproughness\" false\n"
+          "NamedMaterial \"bumped\"\n"
+          "Shape \"trianglemesh\" \"point3 P\" [0 0 0 1 0 0 1 0 -1] \"integer indices\" [0 1 2]\n"
+          "NamedMaterial \"mapped\"\n"
+          "Shape \"trianglemesh\" \"point3 P\" [0 0 0 1 0 0 1 0 -1] \"integer indices\" [0 1 2]\n"
+          "NamedMaterial \"metal\"\n"
+          "Shape \"trianglemesh\" \"point3 P\" [0 0 0 1 0 0 1 0 -1] \"integer indices\" [0 1 2]\n",
+          f);
+    fclose(f);
+    pf_error_t err = { { 0 } };
+    pf_load_report_t rep;
+    pf_scene_t *sc = pf_scene_load_opts(p, &(pf_load_opts_t){ .report = &rep }, &err);
+    CHECK(sc != NULL, "%s", err.msg);
+    if (!sc)
+        return;
+    CHECK(rep.nwarnings == 0, "%zu warning kinds: %s", rep.nwarnings, rep.nwarnings ? rep.warnings[0].first : "");
+    int b = pf_scene_find_material(sc, "bumped"), m = pf_scene_find_material(sc, "mapped"),
+        c = pf_scene_find_material(sc, "metal");
+    CHECK(b >= 0 && m >= 0 && c >= 0);
+    if (b >= 0 && m >= 0 && c >= 0) {
+        const pf_material_t *mb = &sc->mats[b], *mm = &sc->mats[m], *mc = &sc->mats[c];
+        CHECK(mb->bump_tex && !mb->normal_tex, "displacement: the bump slot");
+        CHECK(mm->type == PF_MAT_COATED && mm->normal_tex && mm->kd_tex && mm->rough_tex && mm->rough_remap == 1 &&
+                  !sc->texs[mm->normal_tex - 1].srgb,
+              "coateddiffuse: normal map (linear), reflectance and roughness textures");
+        CHECK(mc->type == PF_MAT_CONDUCTOR && mc->refl_tex && mc->rough_tex && mc->rough_remap == 0 &&
+                  sc->texs[mc->rough_tex - 1].type == PF_TEX_MIX,
+              "conductor: reflectance texture, roughness the mean of u (texture) and v (0.1)");
+        /* at uv (0.1, 0.1) the checkerboard's tex1: alpha (0.04 + 0.1) / 2 */
+        float uv[2] = { 0.1f, 0.1f };
+        float a = pf_texture_eval(sc, mc->rough_tex, uv[0], uv[1]).x;
+        CHECK(fabsf(a - 0.07f) < 1e-6f, "roughness texture %g", a);
+    }
+    pf_scene_destroy(&sc);
+}
+
+/* JSON: "normal_map", "bump" and "bump_scale" on any material type; a
+ * "bump_scale" without "bump" is an error naming the line. */
+static void s_test_json(void)
+{
+    char p[512];
+    uint8_t px[2 * 2 * 3] = { 128, 128, 255, 128, 128, 255, 200, 128, 230, 128, 60, 230 };
+    snprintf(p, sizeof p, "%s/j.png", s_dir);
+    CHECK(stbi_write_png(p, 2, 2, 3, px, 6));
+    const char *good = "{ \"materials\": [\n"
+                       "  { \"name\": \"a\", \"kd\": [0.5, 0.5, 0.5], \"normal_map\": \"j.png\" },\n"
+                       "  { \"name\": \"b\", \"type\": \"conductor\", \"reflectance\": [0.9, 0.9, 0.9],\n"
+                       "    \"bump\": \"j.png\", \"bump_scale\": 0.01 } ],\n"
+                       "  \"objects\": [ { \"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 1, "
+                       "\"material\": \"a\" },\n"
+                       "    { \"type\": \"sphere\", \"center\": [3, 0, 0], \"radius\": 1, \"material\": \"b\" } ],\n"
+                       "  \"lights\": [ { \"type\": \"point\", \"position\": [0, 5, 0], \"intensity\": [1, 1, 1] } ] }\n";
+    snprintf(p, sizeof p, "%s/j.json", s_dir);
+    FILE *f = fopen(p, "w");
+    fputs(good, f);
+    fclose(f);
+    pf_error_t err = { { 0 } };
+    pf_scene_t *sc = pf_scene_load(p, &err);
+    CHECK(sc != NULL, "%s", err.msg);
+    int a = sc ? pf_scene_find_material(sc, "a") : -1, b = sc ? pf_scene_find_material(sc, "b") : -1;
+    CHECK(a >= 0 && b >= 0);
+    if (a >= 0 && b >= 0) {
+        CHECK(sc->mats[a].normal_tex && !sc->mats[a].bump_tex && !sc->texs[sc->mats[a].normal_tex - 1].srgb);
+        CHECK(sc->mats[b].bump_tex && sc->texs[sc->mats[b].bump_tex - 1].scale == 0.01f, "bump_scale");
+    }
+    pf_scene_destroy(&sc);
+    f = fopen(p, "w");
+    fputs("{ \"materials\": [\n  { \"name\": \"a\", \"bump_scale\": 2 } ],\n"
+          "  \"objects\": [ { \"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 1, \"material\": \"a\" } ],\n"
+          "  \"lights\": [ { \"type\": \"point\", \"position\": [0, 5, 0], \"intensity\": [1, 1, 1] } ] }\n",
+          f);
+    fclose(f);
+    sc = pf_scene_load(p, &err);
+    CHECK(sc == NULL && strstr(err.msg, ":2") && strstr(err.msg, "needs 'bump'"), "%s", err.msg);
+    pf_scene_destroy(&sc);
+}
+
 int main(int argc, char **argv)
 {
     pf_log_set_level(PF_LOG_WARN);
@@ -411,6 +508,8 @@ int main(int argc, char **argv)
     if (!strcmp(mode, "unit")) {
         s_test_bump_ramp();
         s_test_mtl();
+        s_test_pbrt();
+        s_test_json();
     } else {
         s_test_normal_map_tilt();
         s_test_textured_conductor();
