@@ -22,8 +22,12 @@
  *   diffusetransmission DIFFUSE kd = reflectance, warned
  *   mix                 the first of its two materials, warned
  *   interface, none     no surface: its shapes are dropped, warned
- *   measured, hair, subsurface, conductors with textured constants:
+ *   measured, hair, subsurface, conductors with textured eta or k:
  *                       DIFFUSE grey 0.5, warned as not renderable
+ * Textured reflectances (diffuse, coateddiffuse, conductor) and roughness
+ * textures (conductor, coateddiffuse) become the material's texture slots,
+ * resolved per hit; "normalmap" and "displacement" on any material bend its
+ * shading normal (pbrt_maps.c, accel/shading.h).
  * Alpha in pbrt-v4 is TrowbridgeReitz's: sqrt(roughness) when
  * remaproughness (the default), the roughness itself otherwise; pbrt renders
  * alpha < 1e-3 as perfectly smooth, and so warns nothing here.
