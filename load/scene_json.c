@@ -753,6 +753,15 @@ static int s_quad(s_ctx_t *c, const cJSON *o)
     }
     memcpy(mesh.idx, flip ? cw : ccw, sizeof ccw);
     mesh.mat[0] = mesh.mat[1] = (uint32_t)mat;
+    /* uv along the edges (0 to 1) for a normal or bump map's tangents */
+    const pf_material_t *mm = &c->scene->mats[mat];
+    static const float uv[8] = { 0, 0, 1, 0, 1, 1, 0, 1 };
+    if ((mm->normal_tex | mm->bump_tex) && !(mesh.uv = malloc(sizeof uv))) {
+        pf_mesh_free(&mesh);
+        return pf_error_set(c->err, PF_ENOMEM, c->path, 0, "out of memory");
+    }
+    if (mesh.uv)
+        memcpy(mesh.uv, uv, sizeof uv);
     if (pf_scene_add_mesh(c->scene, &mesh)) {
         pf_mesh_free(&mesh);
         return pf_error_set(c->err, PF_ENOMEM, c->path, 0, "out of memory");

@@ -469,7 +469,9 @@ static void s_test_json(void)
                        "    \"bump\": \"j.png\", \"bump_scale\": 0.01 } ],\n"
                        "  \"objects\": [ { \"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 1, "
                        "\"material\": \"a\" },\n"
-                       "    { \"type\": \"sphere\", \"center\": [3, 0, 0], \"radius\": 1, \"material\": \"b\" } ],\n"
+                       "    { \"type\": \"sphere\", \"center\": [3, 0, 0], \"radius\": 1, \"material\": \"b\" },\n"
+                       "    { \"type\": \"quad\", \"origin\": [0, -2, 0], \"edge1\": [2, 0, 0], \"edge2\": [0, 0, -2],\n"
+                       "      \"material\": \"a\" } ],\n"
                        "  \"lights\": [ { \"type\": \"point\", \"position\": [0, 5, 0], \"intensity\": [1, 1, 1] } ] }\n";
     snprintf(p, sizeof p, "%s/j.json", s_dir);
     FILE *f = fopen(p, "w");
@@ -483,6 +485,16 @@ static void s_test_json(void)
     if (a >= 0 && b >= 0) {
         CHECK(sc->mats[a].normal_tex && !sc->mats[a].bump_tex && !sc->texs[sc->mats[a].normal_tex - 1].srgb);
         CHECK(sc->mats[b].bump_tex && sc->texs[sc->mats[b].bump_tex - 1].scale == 0.01f, "bump_scale");
+        /* the mapped quad has uv along its edges: dpdu = edge1, dpdv = edge2 */
+        const pf_mesh_t *q = sc->nmeshes == 1 ? &sc->meshes[0] : NULL;
+        CHECK(q && q->uv && q->uv[2] == 1.0f && q->uv[3] == 0.0f && q->uv[7] == 1.0f, "quad uv");
+        if (q && q->uv) {
+            pf_hit_t h = { .ng = pf_v3(0, 1, 0), .geom = 0, .prim = 0, .u = 0.2f, .v = 0.1f };
+            pf_vec3 du, dv;
+            pf_hit_dpduv(sc, &h, &du, &dv);
+            CHECK(pf_len(pf_sub(du, pf_v3(2, 0, 0))) < 1e-6f && pf_len(pf_sub(dv, pf_v3(0, 0, -2))) < 1e-6f,
+                  "quad tangents (%g %g %g), (%g %g %g)", du.x, du.y, du.z, dv.x, dv.y, dv.z);
+        }
     }
     pf_scene_destroy(&sc);
     f = fopen(p, "w");
