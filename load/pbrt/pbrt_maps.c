@@ -11,6 +11,25 @@
 #include "load/pbrt/pbrt_impl.h"
 #include "mesh/texload.h"
 
+/* The normal-map texture of a material converted earlier from the same
+ * file (resolved path), or 0: a scene's materials often share one map. */
+static uint32_t s_loaded(pf_pbrt_t *c, const char *path)
+{
+    char other[4096];
+    for (size_t i = 0; i < c->nmats; i++) {
+        const pf_pbrt_mat_t *o = &c->mats[i];
+        if (o->converted <= 0 || !o->m.normal_tex)
+            continue;
+        for (size_t k = 0; k < o->params.n; k++) {
+            const pf_pbrt_param_t *q = &o->params.p[k];
+            if (q->type == PF_PBRT_P_STRING && q->nstr == 1 && !strcmp(q->name, "normalmap") &&
+                pf_pbrt_resolve(c, q->loc, q->str[0], 0, other, sizeof other) == PF_OK && !strcmp(other, path))
+                return o->m.normal_tex;
+        }
+    }
+    return 0;
+}
+
 static int s_normal_map(pf_pbrt_t *c, pf_pbrt_param_t *p, pf_material_t *m, const char *what)
 {
     if (p->type != PF_PBRT_P_STRING || p->nstr != 1)
@@ -19,6 +38,8 @@ static int s_normal_map(pf_pbrt_t *c, pf_pbrt_param_t *p, pf_material_t *m, cons
     int rc = pf_pbrt_resolve(c, p->loc, p->str[0], 0, path, sizeof path);
     if (rc)
         return rc;
+    if ((m->normal_tex = s_loaded(c, path)))
+        return PF_OK;
     pf_texture_t tmpl = pf_texture_constant("normalmap", pf_v3s(0.5f));
     pf_error_t ierr = { { 0 } };
     int r = pf_texture_load_image(c->scene, path, &tmpl, PF_TEXENC_LINEAR, pf_pbrt_file_name(c, p->loc), p->loc.line,

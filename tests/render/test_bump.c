@@ -420,6 +420,9 @@ static void s_test_pbrt(void)
           "  \"texture reflectance\" \"c\" \"texture roughness\" \"r\"\n"
           "MakeNamedMaterial \"metal\" \"string type\" \"conductor\" \"texture reflectance\" \"c\"\n"
           "  \"texture uroughness\" \"r\" \"float vroughness\" 0.1 \"bool remaproughness\" false\n"
+          "MakeNamedMaterial \"mapped2\" \"string type\" \"diffuse\" \"string normalmap\" \"nm.png\"\n"
+          "NamedMaterial \"mapped2\"\n"
+          "Shape \"trianglemesh\" \"point3 P\" [0 0 0 1 0 0 1 0 -1] \"integer indices\" [0 1 2]\n"
           "NamedMaterial \"bumped\"\n"
           "Shape \"trianglemesh\" \"point3 P\" [0 0 0 1 0 0 1 0 -1] \"integer indices\" [0 1 2]\n"
           "NamedMaterial \"mapped\"\n"
@@ -441,6 +444,8 @@ static void s_test_pbrt(void)
     if (b >= 0 && m >= 0 && c >= 0) {
         const pf_material_t *mb = &sc->mats[b], *mm = &sc->mats[m], *mc = &sc->mats[c];
         CHECK(mb->bump_tex && !mb->normal_tex, "displacement: the bump slot");
+        int m2 = pf_scene_find_material(sc, "mapped2");
+        CHECK(m2 >= 0 && sc->mats[m2].normal_tex == mm->normal_tex, "one normal-map file is read once");
         CHECK(mm->type == PF_MAT_COATED && mm->normal_tex && mm->kd_tex && mm->rough_tex && mm->rough_remap == 1 &&
                   !sc->texs[mm->normal_tex - 1].srgb,
               "coateddiffuse: normal map (linear), reflectance and roughness textures");
