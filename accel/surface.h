@@ -14,11 +14,15 @@
  * about the sphere's world axes. */
 void pf_hit_uv(const pf_scene_t *scene, const pf_hit_t *hit, float uv[2]);
 
-/* A copy of the hit's material with its textured slots (kd, clamped to
- * [0, 1]) evaluated at the hit's uv; the material itself when it has none.
- * A MIX material is first resolved to one of its two (mixes of mixes all
- * the way down), chosen by pf_mix_choose; the copy keeps the mix's own le,
- * as the light table (light/) counts the hit material's emission. */
+/* A copy of the hit's material with its textured slots evaluated at the
+ * hit's uv: kd (clamped to [0, 1]); a conductor's reflectance refl_tex
+ * (clamped to [0, 1]: ks, eta 1 and k from it); roughness rough_tex (alpha,
+ * remapped by sqrt when rough_remap, clamped to [0, 1]). The material
+ * itself when it has none. The normal and bump maps bend the hit's shading
+ * normal instead (accel/shading.h). A MIX material is first resolved to one
+ * of its two (mixes of mixes all the way down), chosen by pf_mix_choose; the
+ * copy keeps the mix's own le, as the light table (light/) counts the hit
+ * material's emission. */
 pf_material_t pf_material_at(const pf_scene_t *scene, const pf_hit_t *hit);
 
 /* The index of the material MIX material `mix` stands for at the hit (one

@@ -106,6 +106,12 @@ int pf_json_rgb(s_ctx_t *c, const cJSON *v, const char *key, const char *what, f
 
 /* An infinite light with "image": reads the map into the scene and fills *l. */
 int pf_json_envlight(s_ctx_t *c, const cJSON *o, pf_light_t *l);
+/* ---- scene_json_maps.c ---- */
+/* Whether key is one of a material's map keys (for every type). */
+int pf_json_is_map_key(const char *key);
+/* A material object's "normal_map", "bump" and "bump_scale" into mat's
+ * normal_tex and bump_tex (images loaded here). 0 or a status, err filled. */
+int pf_json_maps(s_ctx_t *c, const cJSON *m, pf_material_t *mat);
 
 /* ---- scene_json_mat.c ---- */
 

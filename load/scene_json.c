@@ -235,7 +235,8 @@ static int s_coated(s_ctx_t *c, const cJSON *m, pf_material_t *mat)
 static int s_material(s_ctx_t *c, const cJSON *m)
 {
     static const char *const keys[] = { "name", "type", "kd", "ks", "ns", "kt", "ior", "emission",
-                                        "eta", "k", "reflectance", "roughness", "thickness", "materials", "amount", NULL };
+                                        "eta", "k", "reflectance", "roughness", "thickness", "materials", "amount",
+                                        "normal_map", "bump", "bump_scale", NULL };
     const char *what = "material";
     int rc = pf_json_check_object(c, m, what, keys);
     const cJSON *vname = NULL, *v;
@@ -298,7 +299,8 @@ static int s_material(s_ctx_t *c, const cJSON *m)
                          type);
     }
     for (const cJSON *k = m->child; k; k = k->next) {
-        if (strcmp(k->string, "name") == 0 || strcmp(k->string, "type") == 0 || strcmp(k->string, "comment") == 0)
+        if (strcmp(k->string, "name") == 0 || strcmp(k->string, "type") == 0 || strcmp(k->string, "comment") == 0 ||
+            pf_json_is_map_key(k->string))
             continue;
         int ok = 0;
         for (const char *const *p = valid; *p && !ok; p++)
@@ -330,7 +332,7 @@ static int s_material(s_ctx_t *c, const cJSON *m)
         return rc;
     if ((mat.type == PF_MAT_COATED || mat.type == PF_MAT_GLASS) && (rc = s_coated(c, m, &mat)))
         return rc;
-    if ((rc = pf_json_material_more(c, m, &mat)))
+    if ((rc = pf_json_material_more(c, m, &mat)) || (rc = pf_json_maps(c, m, &mat)))
         return rc;
     /* A diffuse surface reflects kd + ks in total; more than 1 would create
      * energy and break the photon tracer's Russian roulette. */
@@ -751,6 +753,15 @@ static int s_quad(s_ctx_t *c, const cJSON *o)
     }
     memcpy(mesh.idx, flip ? cw : ccw, sizeof ccw);
     mesh.mat[0] = mesh.mat[1] = (uint32_t)mat;
+    /* uv along the edges (0 to 1) for a normal or bump map's tangents */
+    const pf_material_t *mm = &c->scene->mats[mat];
+    static const float uv[8] = { 0, 0, 1, 0, 1, 1, 0, 1 };
+    if ((mm->normal_tex | mm->bump_tex) && !(mesh.uv = malloc(sizeof uv))) {
+        pf_mesh_free(&mesh);
+        return pf_error_set(c->err, PF_ENOMEM, c->path, 0, "out of memory");
+    }
+    if (mesh.uv)
+        memcpy(mesh.uv, uv, sizeof uv);
     if (pf_scene_add_mesh(c->scene, &mesh)) {
         pf_mesh_free(&mesh);
         return pf_error_set(c->err, PF_ENOMEM, c->path, 0, "out of memory");

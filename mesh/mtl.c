@@ -39,11 +39,15 @@
  *   -clamp on clamps; the others are skipped). The image is read when the
  *   statement is, and a bad one is an error naming it and this file's line
  *   (a missing one is a warning: Kd stands in).
+ *   bump / map_Bump file, norm file: a bump map (heights in the image's
+ *   first channel, linear, times the -bm multiplier, in world units as
+ *   pbrt's "displacement") and a tangent-space normal map (linear RGB) for
+ *   any kind of material (accel/shading.h); the same options as map_Kd.
  *   map_d file (same options): an alpha cut-out of every triangle with this
  *   material (alpha_tex; the image's mean channel, linear: below a
  *   hash of the ray the hit is skipped, accel/alpha.c), any type.
- *   Other maps (map_Ks, map_Ns, map_Ka, bump, disp, decal, refl, norm,
- *   ...) are not rendered: one warning per kind at the end, with the count and
+ *   Other maps (map_Ks, map_Ns, map_Ka, disp, decal, refl, ...) are
+ *   not rendered: one warning per kind at the end, with the count and
  *   the first line. Ignored without a word: Ka, sharpness.
  *   Other statements are skipped with one warning per keyword.
  *
@@ -78,6 +82,7 @@ typedef struct s_mtl {
     int illum; /* -1 when absent */
     uint32_t kd_tex; /* map_Kd's texture ref, or 0 */
     uint32_t d_tex;  /* map_d's texture ref, or 0 */
+    uint32_t bump_tex, norm_tex; /* bump / map_Bump's and norm's texture refs, or 0 */
 } s_mtl_t;
 
 #define S_MAX_WARNED 32
@@ -239,6 +244,8 @@ static int s_finish(s_ctx_t *c, const s_mtl_t *s)
     if (s->kd_tex && (m.type == PF_MAT_DIFFUSE || m.type == PF_MAT_COATED))
         m.kd_tex = s->kd_tex;
     m.alpha_tex = s->d_tex;
+    m.bump_tex = s->bump_tex; /* any kind: they bend the shading normal */
+    m.normal_tex = s->norm_tex;
     if (pf_reserve((void **)&c->done, &c->cap_done, c->ndone + 1, sizeof *c->done))
         return pf_error_set(c->err, PF_ENOMEM, c->path, s->line, "out of memory");
     c->done[c->ndone++] = m;
@@ -317,11 +324,14 @@ static int s_map_option(const char *opt, size_t n)
     return -1;
 }
 
-/* map_Kd or map_d (kw) [options] file: reads the image into a scene
- * texture (enc: how 8-bit values decode), its ref in *out; a missing image
- * is a warning and leaves *out. */
-static int s_map_image(s_ctx_t *c, const char *p, const char *kw, pf_texenc enc, uint32_t *out)
+/* map_Kd, bump / map_Bump, norm or map_d [options] file (which 0, 1, 2,
+ * 3): reads the image into a scene texture (-bm, the bump multiplier, its
+ * scale; a bump or normal map is linear: heights and directions, not
+ * colours, and an alpha mask is a number); a missing image is a warning. */
+static int s_map_image(s_ctx_t *c, const char *p, int which)
 {
+    static const char *const kws[4] = { "map_Kd", "bump", "norm", "map_d" };
+    const char *kw = kws[which];
     pf_texture_t t = pf_texture_constant(c->cur.name, pf_v3s(0.0f));
     for (;;) {
         p = pf_text_skip_ws(p);
@@ -356,6 +366,8 @@ static int s_map_image(s_ctx_t *c, const char *p, const char *kw, pf_texenc enc,
         if ((size_t)(p - opt) >= 2 && opt[1] == 's' && pf_text_is_delim(opt[2]) && got >= 1) {
             t.su = v[0];
             t.sv = got >= 2 ? v[1] : 1.0f;
+        } else if (which == 1 && (size_t)(p - opt) >= 3 && !strncmp(opt, "-bm", 3) && got >= 1) {
+            t.scale = v[0];
         } else if (opt[1] == 'o' && pf_text_is_delim(opt[2]) && got >= 1) {
             t.du = v[0];
             t.dv = v[1];
@@ -378,11 +390,12 @@ static int s_map_image(s_ctx_t *c, const char *p, const char *kw, pf_texenc enc,
     if (snprintf(path, sizeof path, "%.*s%.*s", dirlen, c->path, (int)n, p) >= (int)sizeof path)
         return pf_error_set(c->err, PF_EPARSE, c->path, c->line, "%s: path too long", kw);
     pf_error_t e = { { 0 } };
-    int ref = pf_texture_load_image(c->scene, path, &t, enc, c->path, c->line, &e);
+    int ref = pf_texture_load_image(c->scene, path, &t, which ? PF_TEXENC_LINEAR : PF_TEXENC_DEFAULT, c->path,
+                                    c->line, &e);
     if (ref == PF_EIO) {
         /* A missing image, like a missing MTL file, is common in downloaded
          * models and not worth failing the scene over. */
-        pf_warn("%s; %s", e.msg, out == &c->cur.kd_tex ? "Kd stands in" : "the surface stays opaque");
+        pf_warn("%s; %s", e.msg, which == 0 ? "Kd stands in" : which == 3 ? "the surface stays opaque" : "the surface stays unbent");
         return PF_OK;
     }
     if (ref < 0) {
@@ -390,7 +403,8 @@ static int s_map_image(s_ctx_t *c, const char *p, const char *kw, pf_texenc enc,
             *c->err = e;
         return ref;
     }
-    *out = (uint32_t)ref;
+    uint32_t *out[4] = { &c->cur.kd_tex, &c->cur.bump_tex, &c->cur.norm_tex, &c->cur.d_tex };
+    *out[which] = (uint32_t)ref;
     return PF_OK;
 }
 
@@ -403,13 +417,10 @@ static int s_statement(void *arg, const char *kw, int kwlen, const char *p)
 #define S_KW(s) (kwlen == (int)sizeof(s) - 1 && strncasecmp(kw, s, sizeof(s) - 1) == 0)
     if (S_KW("newmtl"))
         return s_newmtl(c, p);
-    if (S_KW("map_Kd") || S_KW("map_d")) {
-        int d = S_KW("map_d");
+    if (S_KW("map_Kd") || S_KW("map_d") || S_KW("bump") || S_KW("map_Bump") || S_KW("norm")) {
         if (!c->have)
-            return pf_error_set(c->err, PF_EPARSE, c->path, c->line, "%s before any newmtl", d ? "map_d" : "map_Kd");
-        /* an alpha mask is a number, not a colour: linear */
-        return d ? s_map_image(c, p, "map_d", PF_TEXENC_LINEAR, &cur->d_tex)
-                 : s_map_image(c, p, "map_Kd", PF_TEXENC_DEFAULT, &cur->kd_tex);
+            return pf_error_set(c->err, PF_EPARSE, c->path, c->line, "%.*s before any newmtl", kwlen, kw);
+        return s_map_image(c, p, S_KW("map_Kd") ? 0 : S_KW("norm") ? 2 : S_KW("map_d") ? 3 : 1);
     }
     if ((kwlen > 4 && strncasecmp(kw, "map_", 4) == 0) || S_KW("bump") || S_KW("disp") || S_KW("decal") ||
         S_KW("refl") || S_KW("norm")) {
@@ -504,7 +515,7 @@ int pf_mtl_load(pf_scene_t *scene, const char *path, pf_error_t *err)
     if (rc == PF_OK)
         rc = s_commit(&c); /* nothing reaches the scene from a file with an error */
     for (int i = 0; rc == PF_OK && i < c.nmaps; i++)
-        pf_warn("%s:%d: %s is not rendered (%u statement%s in this file; only map_Kd is)", path, c.maps[i].line,
+        pf_warn("%s:%d: %s is not rendered (%u statement%s in this file; only map_Kd, bump and norm are)", path, c.maps[i].line,
                 c.maps[i].kw, c.maps[i].count, c.maps[i].count == 1 ? "" : "s");
     free(c.done);
     fclose(f);

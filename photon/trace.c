@@ -32,6 +32,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "accel/shading.h"
 #include "accel/surface.h"
 #include "base/log.h"
 #include "base/reserve.h"
@@ -158,6 +159,7 @@ static int s_trace(const s_ctx *c, uint64_t seed, uint64_t index, uint64_t emitt
             return 0;
         pf_material_t mt = pf_material_at(c->scene, &hit);
         const pf_material_t *m = &mt;
+        pf_shade_hit(c->scene, m, &hit, pf_neg(ray.d));
         pf_vec3 wi = pf_neg(ray.d); /* towards where the photon came from */
         pf_vec3 nf = pf_face_forward(hit.ng, wi);
         pf_vec3 ns = pf_dot(hit.ng, nf) > 0.0f ? hit.ns : pf_neg(hit.ns);

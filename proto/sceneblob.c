@@ -9,11 +9,13 @@
  *   u8 has_camera, vec3 pos, vec3 look_at, vec3 up, f32 vfov_deg,
  *     u8 fov_shorter, u8 left_handed, f32 lens_radius, f32 focal_distance
  *   u32 nmats,    nmats x   { str name, u8 type, vec3 kd, vec3 ks, f32 ns, vec3 kt, f32 ior, vec3 le,
- *                             vec3 eta, vec3 k, f32 alpha, f32 thickness, u32 kd_tex }   (version 4: eta,
- *                             k, alpha; version 5: type 4, the thin dielectric; version 7: type 5, the
- *                             coated diffuse, thickness and kd_tex; version 9: types 6 and 7, diffuse
- *                             transmission and mix, and after kd_tex: u32 mix0, u32 mix1, f32 amount,
- *                             u32 amount_tex, u32 alpha_tex)
+ *                             vec3 eta, vec3 k, f32 alpha, f32 thickness, u32 kd_tex, u32 mix0, u32 mix1,
+ *                             f32 amount, u32 amount_tex, u32 alpha_tex, u32 refl_tex,
+ *                             u32 rough_tex, u32 rough_remap, u32 normal_tex, u32 bump_tex }
+ *                             (version 4: eta, k, alpha; version 5: type 4, the thin dielectric; version
+ *                             7: type 5, the coated diffuse, thickness and kd_tex; version 9: types 6 and
+ *                             7, diffuse transmission and mix, and after kd_tex: u32 mix0, u32 mix1, f32
+ *                             amount, u32 amount_tex, u32 alpha_tex, then refl_tex to bump_tex)
  *   u32 nmeshes,  nmeshes x { str name, u64 nverts, u64 ntris, u8 has_normals, u8 has_uv, u32 alpha_tex,
  *                             nverts x vec3 pos, (has_normals) nverts x vec3 nrm,
  *                             (has_uv) nverts x 2 f32 uv, ntris x 3 u32 idx, ntris x u32 mat }
@@ -159,6 +161,11 @@ int pf_sceneblob_write(const pf_scene_t *scene, pf_buf_t *out)
         W(pf_wr_f32(out, m->amount));
         W(pf_wr_u32(out, m->amount_tex));
         W(pf_wr_u32(out, m->alpha_tex));
+        W(pf_wr_u32(out, m->refl_tex));
+        W(pf_wr_u32(out, m->rough_tex));
+        W(pf_wr_u32(out, m->rough_remap));
+        W(pf_wr_u32(out, m->normal_tex));
+        W(pf_wr_u32(out, m->bump_tex));
     }
 
     W(pf_wr_u32(out, (uint32_t)scene->nmeshes));
@@ -389,6 +396,11 @@ static void s_read_materials(s_in_t *in, pf_scene_t *scene)
         m.amount = s_f32(in, what, "amount");
         m.amount_tex = s_u32(in, what, "amount_tex");
         m.alpha_tex = s_u32(in, what, "alpha_tex");
+        m.refl_tex = s_u32(in, what, "refl_tex"); /* the four: likewise */
+        m.rough_tex = s_u32(in, what, "rough_tex");
+        m.rough_remap = s_u32(in, what, "rough_remap") != 0;
+        m.normal_tex = s_u32(in, what, "normal_tex");
+        m.bump_tex = s_u32(in, what, "bump_tex");
         if (!in->status && m.type == PF_MAT_CONDUCTOR &&
             !(m.eta.x > 0.0f && m.eta.y > 0.0f && m.eta.z > 0.0f && m.k.x >= 0.0f && m.k.y >= 0.0f &&
               m.k.z >= 0.0f && m.alpha >= 0.0f && m.alpha <= 1.0f))

@@ -92,6 +92,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "accel/shading.h"
 #include "accel/surface.h"
 #include "base/log.h"
 #include "base/rng.h"
@@ -210,6 +211,7 @@ static void s_gather_trace(s_state *st, pf_ray_t ray, s_gather_end *end)
         }
         pf_material_t mt = pf_material_at(c->scene, &h);
         const pf_material_t *m = &mt;
+        pf_shade_hit(c->scene, m, &h, pf_neg(ray.d));
         pf_vec3 wo = pf_neg(ray.d);
         pf_vec3 nf = pf_face_forward(h.ng, wo);
         pf_vec3 ns = pf_dot(h.ng, nf) > 0.0f ? h.ns : pf_neg(h.ns);
@@ -485,6 +487,7 @@ static pf_vec3 s_radiance(s_state *st, pf_ray_t ray, int depth, pf_vec3 thr, int
         return s_sky(st, ray.d, count_le);
     pf_material_t mt = pf_material_at(c->scene, &h);
     const pf_material_t *m = &mt;
+    pf_shade_hit(c->scene, m, &h, pf_neg(ray.d));
     pf_vec3 wo = pf_neg(ray.d);
     pf_vec3 nf = pf_face_forward(h.ng, wo);
     pf_vec3 ns = pf_dot(h.ng, nf) > 0.0f ? h.ns : pf_neg(h.ns);
@@ -628,6 +631,7 @@ static const pf_material_t *s_primary_hit(const pf_render_ctx_t *c, pf_ray_t ray
     for (int depth = 0; pf_accel_intersect(c->accel, &ray, INFINITY, h); depth++) {
         pf_material_t mt = pf_material_at(c->scene, h);
         const pf_material_t *m = &mt;
+        pf_shade_hit(c->scene, m, h, pf_neg(ray.d));
         *length += h->t;
         pf_vec3 wo = pf_neg(ray.d);
         *nf = pf_face_forward(h->ng, wo);

@@ -410,11 +410,11 @@ static int s_check_textures(pf_scene_t *self, pf_error_t *err)
     }
     for (size_t i = 0; i < self->nmats; i++) {
         const pf_material_t *m = &self->mats[i];
-        if (m->kd_tex > self->ntexs || m->amount_tex > self->ntexs || m->alpha_tex > self->ntexs)
-            return pf_error_set(err, PF_EPARSE, file, 0, "material '%s': texture %u out of range (%zu textures)",
-                                m->name, (unsigned)(m->kd_tex > self->ntexs ? m->kd_tex : m->amount_tex > self->ntexs
-                                                                                ? m->amount_tex : m->alpha_tex),
-                                self->ntexs);
+        uint32_t refs[7] = { m->kd_tex, m->refl_tex, m->rough_tex, m->normal_tex, m->bump_tex, m->amount_tex, m->alpha_tex };
+        for (int k = 0; k < 7; k++)
+            if (refs[k] > self->ntexs)
+                return pf_error_set(err, PF_EPARSE, file, 0, "material '%s': texture %u out of range (%zu textures)",
+                                    m->name, (unsigned)refs[k], self->ntexs);
     }
     for (size_t m = 0; m < self->nmeshes; m++) {
         pf_mesh_t *mesh = &self->meshes[m];

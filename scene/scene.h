@@ -56,6 +56,13 @@ typedef struct pf_material {
     uint32_t amount_tex; /* MIX: 1 + texture index: amount is that texture's mean channel at the hit; 0: amount */
     uint32_t alpha_tex;  /* 1 + texture index: an alpha cut-out of every triangle with this material (MTL map_d;
                           * accel/alpha.c), where its mesh has none of its own; 0: opaque */
+    /* Textured slots beyond kd (accel/surface.h resolves them at a hit; 0: none): */
+    uint32_t refl_tex;   /* CONDUCTOR: pbrt-v4's reflectance form, ks = the texture, eta 1, k from ks */
+    uint32_t rough_tex;  /* CONDUCTOR, COATED: roughness texture (first channel); alpha = sqrt of it when
+                          * rough_remap, else the value itself, clamped to [0, 1] */
+    uint32_t rough_remap;
+    uint32_t normal_tex; /* tangent-space normal map (linear RGB, n = 2 c - 1 in the (dpdu, n x dpdu, n) frame) */
+    uint32_t bump_tex;   /* displacement (first channel, world units): bump mapping (accel/shading.h) */
 } pf_material_t;
 
 /* pbrt-v4's "reflectance" form of a conductor: eta = 1 and this k, which

@@ -359,6 +359,19 @@ int pf_pbrt_material(pf_pbrt_t *c, const char *name, const char *type, pf_pbrt_p
  * (the caller reads the constant) or of a class not rendered (the caller
  * warns and uses its default). */
 int pf_pbrt_color_texture(pf_pbrt_t *c, pf_pbrt_param_t *p, uint32_t *ref);
+/* A float texture parameter p as a scene texture ref in *ref (constants
+ * too); 0 when its class is not rendered. p is marked used when made. */
+int pf_pbrt_float_texture(pf_pbrt_t *c, pf_pbrt_param_t *p, uint32_t *ref);
+/* ---- pbrt_maps.c ---- */
+/* A material's "normalmap" (an image file, read linear) and "displacement"
+ * (a float texture) into m's normal_tex and bump_tex; their parameters are
+ * marked used. Unrendered texture classes are warned. */
+int pf_pbrt_mat_maps(pf_pbrt_t *c, pf_pbrt_params_t *ps, pf_material_t *m, const char *what);
+/* The roughness of a conductor or coateddiffuse when "roughness",
+ * "uroughness" or "vroughness" is a non-constant texture: m->rough_tex (the
+ * mean of u and v when they differ) and m->rough_remap ("remaproughness"),
+ * *done 1 and the parameters used; *done 0 and nothing touched otherwise. */
+int pf_pbrt_rough_texture(pf_pbrt_t *c, pf_pbrt_params_t *ps, pf_material_t *m, int *done);
 /* A shape's "alpha" (float or float texture) as a scene texture ref in *ref:
  * 0 when absent or 1 (opaque), or when its texture class is not rendered
  * (warned). */

@@ -28,8 +28,12 @@
  *                       0.5; a float texture: amount_tex); a part that is an
  *                       interface: the other part alone, warned
  *   interface, none     no surface: its shapes are dropped, warned
- *   measured, hair, subsurface, conductors with textured constants:
+ *   measured, hair, subsurface, conductors with textured eta or k:
  *                       DIFFUSE grey 0.5, warned as not renderable
+ * Textured reflectances (diffuse, coateddiffuse, conductor) and roughness
+ * textures (conductor, coateddiffuse) become the material's texture slots,
+ * resolved per hit; "normalmap" and "displacement" on any material bend its
+ * shading normal (pbrt_maps.c, accel/shading.h).
  * Alpha in pbrt-v4 is TrowbridgeReitz's: sqrt(roughness) when
  * remaproughness (the default), the roughness itself otherwise; pbrt renders
  * alpha < 1e-3 as perfectly smooth, and so warns nothing here.
@@ -233,10 +237,17 @@ static int s_diffuse(pf_pbrt_t *c, pf_pbrt_mat_t *m, const char *what)
 
 static int s_coated_diffuse(pf_pbrt_t *c, pf_pbrt_mat_t *m, const char *what)
 {
-    double au, av, eta, thickness;
+    double au = 0.0, av = 0.0, eta, thickness;
     pf_vec3 albedo = pf_v3s(0.0f);
-    int rc = pf_pbrt_get_color(c, &m->params, "reflectance", PF_PBRT_ALBEDO, pf_v3s(0.5f), what, &m->m.kd, NULL);
+    int rc = PF_OK, rough_tex = 0;
+    pf_pbrt_param_t *p = pf_pbrt_param(&m->params, "reflectance");
+    if (p && p->type == PF_PBRT_P_TEXTURE)
+        rc = pf_pbrt_color_texture(c, p, &m->m.kd_tex);
+    if (rc == PF_OK && !m->m.kd_tex)
+        rc = pf_pbrt_get_color(c, &m->params, "reflectance", PF_PBRT_ALBEDO, pf_v3s(0.5f), what, &m->m.kd, NULL);
     if (rc == PF_OK)
+        rc = pf_pbrt_rough_texture(c, &m->params, &m->m, &rough_tex);
+    if (rc == PF_OK && !rough_tex)
         rc = s_alpha_uv(c, &m->params, "", what, &au, &av);
     if (rc == PF_OK)
         rc = s_eta(c, &m->params, "eta", what, &eta);
@@ -271,9 +282,21 @@ static int s_conductor_f0(pf_pbrt_t *c, pf_pbrt_mat_t *m, const char *prefix, co
     snprintf(ne, sizeof ne, "%seta", prefix);
     snprintf(nk, sizeof nk, "%sk", prefix);
     *ok = 0;
-    if (s_is_texture(&m->params, ne) || s_is_texture(&m->params, nk) || s_is_texture(&m->params, "reflectance"))
+    if (s_is_texture(&m->params, ne) || s_is_texture(&m->params, nk))
         return PF_OK;
     *ok = 1;
+    pf_pbrt_param_t *pr = pf_pbrt_param(&m->params, "reflectance");
+    if (pr && pr->type == PF_PBRT_P_TEXTURE && !*prefix) { /* resolved per hit (accel/surface.h) */
+        int rc = pf_pbrt_color_texture(c, pr, &m->m.refl_tex);
+        if (rc || m->m.refl_tex) {
+            m->m.eta = pf_v3s(1.0f);
+            m->m.k = pf_v3s(pf_conductor_k_of_reflectance(0.5f));
+            m->m.ks = pf_v3s(0.5f);
+            return rc;
+        }
+    }
+    if (s_is_texture(&m->params, "reflectance"))
+        return *ok = 0, PF_OK;
     pf_vec3 eta, k, refl;
     int found = 0;
     int rc = pf_pbrt_get_color(c, &m->params, "reflectance", PF_PBRT_ALBEDO, pf_v3s(0.0f), what, &refl, &found);
@@ -323,6 +346,9 @@ static int s_conductor(pf_pbrt_t *c, pf_pbrt_mat_t *m, const char *what, int coa
                             "left out",
                             what, m->m.ks.x, m->m.ks.y, m->m.ks.z);
     }
+    int rough_tex = 0;
+    if ((rc = pf_pbrt_rough_texture(c, &m->params, &m->m, &rough_tex)) || rough_tex)
+        return rc;
     if ((rc = s_alpha_uv(c, &m->params, "", what, &au, &av)))
         return rc;
     m->m.alpha = (float)fmin(0.5 * (au + av), 1.0);
@@ -477,13 +503,8 @@ static int s_convert(pf_pbrt_t *c, pf_pbrt_mat_t *m)
         rc = PF_OK;
     } else
         rc = s_not_renderable(c, m, what, "is not supported");
-    const char *mods[] = { "displacement", "normalmap" };
-    for (int i = 0; i < 2 && rc == PF_OK; i++) {
-        pf_pbrt_param_t *p = pf_pbrt_param(&m->params, mods[i]);
-        if (p)
-            rc = pf_pbrt_warn(c, p->loc, i ? "normal map (ignored)" : "displacement (ignored)",
-                              "%s: \"%s\" is not rendered yet", what, mods[i]);
-    }
+    if (rc == PF_OK && !m->no_surface)
+        rc = pf_pbrt_mat_maps(c, &m->params, &m->m, what);
     if (rc == PF_OK)
         rc = pf_pbrt_check_unused(c, &m->params, what);
     const char *f = pf_pbrt_file_name(c, m->loc), *slash = strrchr(f, '/');

@@ -262,3 +262,17 @@ int pf_pbrt_alpha_texture(pf_pbrt_t *c, pf_pbrt_params_t *ps, uint32_t *ref)
     *ref = (uint32_t)r;
     return PF_OK;
 }
+
+int pf_pbrt_float_texture(pf_pbrt_t *c, pf_pbrt_param_t *p, uint32_t *ref)
+{
+    *ref = 0;
+    if (p->nstr != 1)
+        return pf_pbrt_error(c, PF_EPARSE, p->loc, "texture parameter '%s' takes one texture name", p->name);
+    pf_pbrt_tex_t *t;
+    int rc = pf_pbrt_find_texture(c, p->str[0], 1, p->loc, &t);
+    if (rc == PF_OK)
+        rc = s_make(c, t, ref);
+    if (rc == PF_OK && *ref)
+        p->used = 1;
+    return rc;
+}

@@ -496,7 +496,8 @@ static void test_mtl_errors(void)
         { "newmtl a\nKe -1 0 0\n", PF_EPARSE },   { "newmtl a\nd -0.5\n", PF_EPARSE },
         { "newmtl a\nTf 1 1 1 1\n", PF_EPARSE },  { "newmtl a\nKd spectral x.rfl\n", PF_EUNSUPPORTED },
         { "# no material yet\nKd 1 1 1\n", PF_EPARSE }, { "newmtl a\nnewmtl\n", PF_EPARSE },
-        { "newmtl a\nNs\n", PF_EPARSE },
+        { "newmtl a\nNs\n", PF_EPARSE },        { "newmtl a\nbump -bm 2\n", PF_EPARSE },
+        { "newmtl a\nnorm -zz n.ppm\n", PF_EPARSE },
     };
     for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
         const char *path = s_write_str("bad_case.mtl", bad[i].text);
@@ -505,6 +506,32 @@ static void test_mtl_errors(void)
         if (rc != bad[i].status || !strstr(err.msg, "bad_case.mtl:2:"))
             fprintf(stderr, "    mtl case %zu: rc %d '%s'\n", i, rc, err.msg);
         CHECK(rc == bad[i].status && strstr(err.msg, "bad_case.mtl:2:"));
+    }
+    pf_scene_destroy(&s);
+}
+
+/* bump / map_Bump (with -bm) and norm: read into the material's bump and
+ * normal texture slots, linear (heights and directions), any material kind. */
+static void test_mtl_bump_norm(void)
+{
+    static const char ppm[] = "P6\n2 2\n255\n\x80\x80\xff\x80\x80\xff\x10\x20\x30\x40\x50\x60";
+    s_write("hb.ppm", ppm, sizeof ppm - 1);
+    s_write_str("bn.mtl", "newmtl bumped\nKd 0.5 0.5 0.5\nbump -bm 0.5 -s 2 2 hb.ppm\n"
+                          "newmtl normal\nKs 0.9 0.9 0.9\nillum 3\nnorm hb.ppm\n"
+                          "newmtl mb\nmap_Bump hb.ppm\n");
+    const char *obj = s_write_str("bn.obj", "mtllib bn.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\n"
+                                            "usemtl bumped\nf 1/1 2/2 3/3\nusemtl normal\nf 1/1 3/3 2/2\n"
+                                            "usemtl mb\nf 2/2 1/1 3/3\n");
+    pf_scene_t *s = pf_scene_create();
+    pf_error_t err = { { 0 } };
+    CHECK(pf_obj_load(s, obj, NULL, -1, &err) == PF_OK, "%s", err.msg);
+    const pf_material_t *b = s_mat(s, "bumped"), *n = s_mat(s, "normal"), *m = s_mat(s, "mb");
+    CHECK(b && n && m);
+    if (b && n && m) {
+        CHECK(b->bump_tex && !b->normal_tex && s->texs[b->bump_tex - 1].scale == 0.5f &&
+              s->texs[b->bump_tex - 1].su == 2.0f && !s->texs[b->bump_tex - 1].srgb);
+        CHECK(n->type == PF_MAT_MIRROR && n->normal_tex && !n->bump_tex && !s->texs[n->normal_tex - 1].srgb);
+        CHECK(m->bump_tex && s->texs[m->bump_tex - 1].scale == 1.0f);
     }
     pf_scene_destroy(&s);
 }
@@ -870,6 +897,7 @@ int main(void)
     test_mtl_mapping();
     test_mtl_errors();
     test_mtl_pbr();
+    test_mtl_bump_norm();
     test_ply_ascii();
     test_ply_binary();
     test_bunny();

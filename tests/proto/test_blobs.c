@@ -325,7 +325,8 @@ static s_offsets_t s_walk(const uint8_t *d)
             o.mat4_eta = at + 1 + 56;
         if (i == 7)
             o.mat7_mix0 = at + 1 + 56 + 28 + 4 + 4; /* after kd_tex */
-        at += 1 + 56 + 36 + 20; /* and version 9: mix0, mix1, amount, amount_tex, alpha_tex */
+        at += 1 + 56 + 36 + 20 + 20; /* and version 9: mix0, mix1, amount, amount_tex, alpha_tex, then refl_tex,
+                                      * rough_tex, rough_remap, normal_tex, bump_tex */
     }
     o.nmeshes = at;
     uint32_t nmesh = d[at];
@@ -415,7 +416,7 @@ static void test_scene_blob(void)
         { 4, 2, 5, 0, "format version 5, this build reads 9", "version 5 (before the distant light)" },
         { 4, 2, 6, 0, "format version 6, this build reads 9", "version 6 (before the coat and the textures)" },
         { 4, 2, 7, 0, "format version 7, this build reads 9", "version 7 (before the environment maps)" },
-        { 4, 2, 8, 0, "format version 8, this build reads 9", "version 8 (before mix and diffuse transmission)" },
+        { 4, 2, 8, 0, "format version 8, this build reads 9", "version 8 (before mix, diffuse transmission, normal and bump maps)" },
         { o.reserved, 2, 1, 0, "reserved", "reserved field" },
         { o.has_camera, 1, 2, 0, "has_camera", "has_camera 2" },
         { o.has_camera + 1, -4, 0, NAN, "camera pos is not a finite number", "camera NaN" },
@@ -449,6 +450,8 @@ static void test_scene_blob(void)
         { o.mesh0_has_nrm, 1, 3, 0, "has_normals", "has_normals 3" },
         { o.mesh0_has_uv, 1, 2, 0, "has_uv 2", "has_uv 2" },
         { o.mat1_kd_tex, 4, 1, 0, "texture 1 out of range (0 textures)", "kd_tex without textures (finalize)" },
+        { o.mat1_kd_tex + 16, 4, 1, 0, "texture 1 out of range (0 textures)", "normal_tex without textures (finalize)" },
+        { o.mat1_kd_tex + 20, 4, 2, 0, "texture 2 out of range (0 textures)", "bump_tex without textures (finalize)" },
         { o.ntexs, 4, 0x10000000u, 0, "textures need at least", "texture count" },
         { o.mesh0_pos + 4, -4, 0, NAN, "positions is not a finite", "NaN position" },
         { o.mesh0_idx + 4, 4, 4, 0, "vertex index 4 is out of range", "vertex index" },
