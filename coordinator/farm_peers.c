@@ -88,10 +88,12 @@ void pf_fm_declare_dead(pf_fm_t *f, int wi, const char *why)
     f->sum->workers_lost++;
     pf_registry_gone(&f->reg, wi, PF_W_DEAD, pf_now());
     pf_fm_release_worker(f, wi, why);
+    pf_fm_fanout_gone(f, wi);
 }
 
 void pf_fm_send_job(pf_fm_t *f, int wi)
 {
+    pf_fm_fanout_job(f, wi);
     pf_msg_t m = { .type = PF_MSG_JOB };
     m.u.job = f->jobmsg;
     if (pf_fm_send(f, wi, &m) == 0)
@@ -112,6 +114,7 @@ void pf_fm_evict(pf_fm_t *f, int wi, const char *why)
     pf_fm_release_worker(f, wi, "was evicted");
     pf_registry_block(&f->reg, w);
     pf_registry_gone(&f->reg, wi, PF_W_FREE, pf_now());
+    pf_fm_fanout_gone(f, wi);
     f->sum->evicted++;
 }
 
@@ -298,6 +301,8 @@ static void s_on_hello(pf_fm_t *f, const uint8_t *id, size_t idlen, const char *
     w->threads = h->threads;
     w->last_seen = now;
     w->state = PF_W_HELLO;
+    /* Peer sockets are plaintext: no fan-out where CURVE guards the farm. */
+    pf_fanout_hello(f->fan, wi, w->uid, f->frame_addr, f->o->curve_secret ? 0 : h->peer_port);
     if (strcmp(h->fp.git, self.git) != 0) {
         char git[128];
         pf_info("worker %s was built from %s (this coordinator: %s)", w->name,
@@ -413,6 +418,7 @@ static void s_dispatch(pf_fm_t *f, int wi, const pf_msg_t *m)
         }
         pf_fm_release_worker(f, wi, NULL);
         pf_registry_gone(&f->reg, wi, PF_W_FREE, pf_now());
+        pf_fm_fanout_gone(f, wi);
         break;
     default:
         snprintf(why, sizeof why, "%s is not a message for a coordinator", pf_msg_type_name(m->type));
