@@ -353,7 +353,9 @@ static void s_on_message(s_worker *w, const uint8_t *frame, size_t len)
  * flood). Multi-frame messages are not part of the protocol and are dropped. */
 static void s_receive(s_worker *w)
 {
-    for (int i = 0; i < S_MAX_RECV_PER_WAKE && w->sock && !w->finished; i++) {
+    /* Never long (a stream of blob chunks must not keep the heartbeats back). */
+    double t0 = pf_now();
+    for (int i = 0; i < S_MAX_RECV_PER_WAKE && w->sock && !w->finished && pf_now() - t0 < 0.05; i++) {
         zmq_msg_t msg;
         zmq_msg_init(&msg);
         if (zmq_msg_recv(&msg, w->sock, ZMQ_DONTWAIT) < 0) {

@@ -201,7 +201,10 @@ int pf_w_peer_send(s_worker *w, const pf_msg_t *m)
 /* Frames from the source: BLOB_CHUNKs only. */
 static void s_fetch_recv(s_worker *w)
 {
-    for (int burst = 0; burst < 64 && w->pfetch; burst++) {
+    /* A few frames a wake-up, and never long: a source relaying a stream
+     * would otherwise keep this loop here, and no heartbeat would go out. */
+    double t0 = pf_now();
+    for (int burst = 0; burst < 8 && w->pfetch && pf_now() - t0 < 0.05; burst++) {
         zmq_msg_t msg;
         zmq_msg_init(&msg);
         if (zmq_msg_recv(&msg, w->pfetch, ZMQ_DONTWAIT) < 0) {
