@@ -1,6 +1,6 @@
-/* fanout.c: the fan-out tree of the maps blob (see fanout.h), and the
- * farm's glue: the BLOB_PLAN sent before each JOB, the children of a worker
- * that is gone sent back to the coordinator.
+/* fanout.c: the fan-out tree of the maps blob (see fanout.h). The farm's
+ * glue (the BLOB_PLAN sent before each JOB, the children of a worker that
+ * is gone sent back to the coordinator) is in farm_peers.c.
  *
  * The tree is chosen greedily as workers get their JOB: the shallowest
  * serving worker with room, the earliest slot on a tie. With degree 2 and
@@ -14,10 +14,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "base/log.h"
 #include "base/status.h"
-#include "coordinator/farm.h"
-#include "coordinator/farm_impl.h"
 #include "proto/hashtree.h"
 
 typedef struct s_node {
@@ -173,38 +170,4 @@ int pf_fanout_gone(pf_fanout_t *fo, int slot, int *kids, int max)
     me->in_tree = 0;
     me->source[0] = '\0'; /* a dead worker serves no one, even if its slot's node is looked at again */
     return k;
-}
-
-/* ---- the farm's glue ---- */
-
-void pf_fm_fanout_job(pf_fm_t *f, int wi)
-{
-    pf_msg_t m = { .type = PF_MSG_BLOB_PLAN };
-    int src = pf_fanout_plan(f->fan, wi, &m.u.plan);
-    if (src == -1)
-        return;
-    if (pf_fm_send(f, wi, &m) != 0)
-        return;
-    if (src >= 0) {
-        f->sum->fanout_peer++;
-        pf_debug("worker %s fetches the maps from worker %s (%s)", f->reg.w[wi].name, f->reg.w[src].name,
-                 m.u.plan.source);
-    }
-}
-
-void pf_fm_fanout_gone(pf_fm_t *f, int wi)
-{
-    int kids[64];
-    int n = pf_fanout_gone(f->fan, wi, kids, 64);
-    for (int k = 0; k < n; k++) {
-        int ci = kids[k];
-        if (f->reg.w[ci].state != PF_W_JOB_SENT)
-            continue; /* it has the maps already, or is gone itself */
-        pf_msg_t m = { .type = PF_MSG_BLOB_PLAN };
-        if (pf_fanout_plan_coordinator(f->fan, &m.u.plan) == -1 || pf_fm_send(f, ci, &m) != 0)
-            continue;
-        f->sum->fanout_fallback++;
-        pf_info("worker %s fetches the maps from the coordinator now: its source, worker %s, is gone",
-                f->reg.w[ci].name, f->reg.w[wi].name);
-    }
 }

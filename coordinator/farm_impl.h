@@ -218,7 +218,7 @@ int pf_fm_photons_release(pf_fm_t *f, int wi);
  * table freed, a log line. */
 void pf_fm_photons_end(pf_fm_t *f);
 
-/* fanout.c */
+/* farm_peers.c: fan-out (the tree: fanout.c) */
 
 /* Before worker wi's JOB: its BLOB_PLAN (where to fetch the maps, and their
  * chunk hashes); nothing when there is no plan. */

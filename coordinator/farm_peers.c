@@ -479,3 +479,36 @@ void pf_fm_on_frame(pf_fm_t *f, const uint8_t *id, size_t idlen, const char *key
     s_dispatch(f, wi, &m);
 }
 
+/* --- fan-out (fanout.h: the tree) -------------------------------------- */
+
+void pf_fm_fanout_job(pf_fm_t *f, int wi)
+{
+    pf_msg_t m = { .type = PF_MSG_BLOB_PLAN };
+    int src = pf_fanout_plan(f->fan, wi, &m.u.plan);
+    if (src == -1)
+        return;
+    if (pf_fm_send(f, wi, &m) != 0)
+        return;
+    if (src >= 0) {
+        f->sum->fanout_peer++;
+        pf_debug("worker %s fetches the maps from worker %s (%s)", f->reg.w[wi].name, f->reg.w[src].name,
+                 m.u.plan.source);
+    }
+}
+
+void pf_fm_fanout_gone(pf_fm_t *f, int wi)
+{
+    int kids[64];
+    int n = pf_fanout_gone(f->fan, wi, kids, 64);
+    for (int k = 0; k < n; k++) {
+        int ci = kids[k];
+        if (f->reg.w[ci].state != PF_W_JOB_SENT)
+            continue; /* it has the maps already, or is gone itself */
+        pf_msg_t m = { .type = PF_MSG_BLOB_PLAN };
+        if (pf_fanout_plan_coordinator(f->fan, &m.u.plan) == -1 || pf_fm_send(f, ci, &m) != 0)
+            continue;
+        f->sum->fanout_fallback++;
+        pf_info("worker %s fetches the maps from the coordinator now: its source, worker %s, is gone",
+                f->reg.w[ci].name, f->reg.w[wi].name);
+    }
+}

@@ -495,6 +495,21 @@ static int s_check(const pf_msg_t *m, char *why, size_t why_len)
 
 /* ---- encoding ---- */
 
+/* BLOB_PLAN's body (its root checked by the caller). */
+static int s_enc_plan(pf_buf_t *out, const pf_msg_blob_plan_t *pl)
+{
+    int rc = 0;
+    W(pf_wr_u64(out, pl->hash));
+    W(pf_wr_u64(out, pl->size));
+    W(pf_wr_u32(out, pl->source_uid));
+    W(pf_wr_str(out, pl->source));
+    W(pf_wr_u64(out, pl->root));
+    W(pf_wr_u32(out, pl->n));
+    for (uint32_t k = 0; k < pl->n && rc == 0; k++)
+        W(pf_wr_u64(out, pl->leaves[k]));
+    return rc;
+}
+
 int pf_msg_encode(const pf_msg_t *msg, pf_buf_t *out)
 {
     out->len = 0;
@@ -633,14 +648,7 @@ int pf_msg_encode(const pf_msg_t *msg, pf_buf_t *out)
         }
         break;
     case PF_MSG_BLOB_PLAN:
-        W(pf_wr_u64(out, pl->hash));
-        W(pf_wr_u64(out, pl->size));
-        W(pf_wr_u32(out, pl->source_uid));
-        W(pf_wr_str(out, pl->source));
-        W(pf_wr_u64(out, pl->root));
-        W(pf_wr_u32(out, pl->n));
-        for (uint32_t k = 0; k < pl->n && rc == 0; k++)
-            W(pf_wr_u64(out, pl->leaves[k]));
+        W(s_enc_plan(out, pl));
         break;
     }
     if (rc != 0)
