@@ -3,7 +3,8 @@
  * another worker when the coordinator's BLOB_PLAN says so.
  *
  * Serving. A ROUTER bound at start (loopback when the coordinator is local,
- * every interface otherwise; the port announced in HELLO). A child sends
+ * every interface otherwise; the port announced in HELLO; none with CURVE,
+ * --no-peers, or an ipc:// coordinator unless --peer-port is given). A child sends
  * BLOB_REQ(hash, offset, credit) exactly as it would to the coordinator;
  * the range is kept per child and its chunks go out as this worker holds
  * them (a chunk is relayed as soon as it has arrived and passed its chunk
@@ -54,8 +55,11 @@ static int s_local_endpoint(const char *ep)
 int pf_w_peers_open(s_worker *w)
 {
     int port = w->opts->peer_port;
-    if (port < 0 || w->curve)
-        return 0; /* no serving (with CURVE: the peer socket would be plaintext) */
+    /* No serving with CURVE (the peer socket would be plaintext), nor by
+     * default for a coordinator on an ipc:// socket: its workers share one
+     * machine (no link to spare) and that farm opens no TCP port at all. */
+    if (port < 0 || w->curve || (port == 0 && strncmp(w->opts->endpoint, "ipc://", 6) == 0))
+        return 0;
     w->psrv = zmq_socket(w->zctx, ZMQ_ROUTER);
     if (!w->psrv)
         return -1;
