@@ -8,14 +8,16 @@
 #     "blobs from the coordinator: maps S bytes sent for M bytes" must show
 #     S <= 2 x M (without fan-out it is 6 x M), workers must have fetched
 #     the maps from peers, and the image must be bit-identical (cmp) to the
-#     in-process render.
+#     in-process render. Meanwhile a hostile peer (pf_inject garbage and
+#     truncated frames) hits worker w6's peer socket: the worker drops and
+#     strikes what it sends, and serves on.
 #  B. the same with the coordinator's link slower still, and the worker that
 #     serves the others killed (kill -9) as the maps go out: its children
 #     fetch the rest from the coordinator (told by the coordinator when it
 #     declares the worker dead, or by their own 4 s stall timer), the render
 #     completes, bit-identical again.
 #
-# usage: tests/integration/test_fanout.sh [photonfarm [photonfarm-worker]]
+# usage: tests/integration/test_fanout.sh [photonfarm [photonfarm-worker [pf_inject]]]
 #        PF_FANOUT_KEEP=1 keeps the temporary directory (logs, images).
 # Needs root, `ip netns` and tc with tbf; without them it exits 77 (ctest:
 # skipped). About 30 s on two cores.
@@ -24,9 +26,11 @@ set -u
 ROOT=$(cd "$(dirname "$0")/../.." && pwd)
 PF=${1:-$ROOT/build/bin/photonfarm}
 PFW=${2:-$ROOT/build/bin/photonfarm-worker}
+INJ=${3:-$ROOT/build/bin/pf_inject}
 abs() { case $1 in /*) echo "$1" ;; *) echo "$PWD/$1" ;; esac; }
 PF=$(abs "$PF")
 PFW=$(abs "$PFW")
+INJ=$(abs "$INJ")
 cd "$ROOT" || exit 1
 
 skip_all() {
@@ -118,10 +122,24 @@ figures() {
 
 # ---- A: six workers, the coordinator's bytes per map ------------------------------
 start_workers a
+# The hostile peer, from w1's host, at w6's peer port (once w6 has bound it).
+ipid=""
+end=$((SECONDS + 10))
+pport=""
+while [ -z "$pport" ] && [ "$SECONDS" -lt "$end" ]; do
+    pport=$(sed -nE 's/.*serving blob chunks to other workers at tcp:\/\/[^:]*:([0-9]+).*/\1/p' "$T/a-w6.err" | head -n 1)
+    [ -z "$pport" ] && sleep 0.05
+done
+if [ -n "$pport" ] && [ -x "$INJ" ]; then
+    (ip netns exec "$TAG-w1" timeout 60 "$INJ" "tcp://$NET.7:$pport" garbage 7 &&
+        ip netns exec "$TAG-w1" timeout 60 "$INJ" "tcp://$NET.7:$pport" truncated) >"$T/inject.out" 2>&1 &
+    ipid=$!
+fi
 t0=$SECONDS
 ip netns exec "$NS_C" timeout 120 "$PF" render "$SCENE" -o "$T/a.png" --hdr "$T/a.pfm" "${RENDER[@]}" "${FARM[@]}" \
     --bind "$EP" --workers 0 --min-workers "$NW" -v >"$T/a.out" 2>"$T/a.err"
 rc=$?
+wait "$ipid" 2>/dev/null
 stop_workers
 read -r sent size peers back <<<"$(figures "$T/a.err")"
 note "A: $NW workers, coordinator link $COORD_MBIT Mbit/s: the coordinator sent ${sent:-?} bytes of maps for a" \
@@ -134,6 +152,11 @@ check "A: the coordinator sent <= 2 x the map size (${sent:-?} for ${size:-?})" 
 check "A: at least 4 of the $NW workers fetched the maps from a peer (${peers:-?})" [ "${peers:-0}" -ge 4 ]
 check "A: no chunk from a peer failed its hash" bash -c "! grep -h 'does not match its chunk hash' $T/a-w*.err"
 check "A: the image is bit-identical to the in-process render" cmp -s "$T/a.pfm" "$T/ref.pfm"
+if [ -n "$ipid" ]; then
+    check "A: w6 dropped and struck the hostile peer's frames" grep -q "dropped a message from a peer" "$T/a-w6.err"
+else
+    skip "A: the hostile peer (no peer port seen in w6's log, or no pf_inject)"
+fi
 [ "$rc" -eq 0 ] || show "$T/a.err"
 
 # ---- B: the serving worker killed as the maps go out -------------------------------
@@ -142,8 +165,11 @@ ip netns exec "$NS_C" tc qdisc change dev eth0 root tbf rate 16mbit burst 32768 
 ip netns exec "$NS_BR" tc qdisc change dev to-c root tbf rate 16mbit burst 32768 latency 400ms 2>/dev/null
 start_workers b
 t0=$SECONDS
+# Heartbeats of 1 s here: at 16 Mbit/s, workers falling back together get a
+# 1 MiB chunk each every few seconds, and with 250 ms they would give the
+# coordinator up for silent (5 intervals) between two chunks.
 ip netns exec "$NS_C" timeout 120 "$PF" render "$SCENE" -o "$T/b.png" --hdr "$T/b.pfm" "${RENDER[@]}" "${FARM[@]}" \
-    --bind "$EP" --workers 0 --min-workers 5 -v >"$T/b.out" 2>"$T/b.err" &
+    --heartbeat-ms 1000 --bind "$EP" --workers 0 --min-workers 5 -v >"$T/b.out" 2>"$T/b.err" &
 cpid=$!
 # The first "fetches the maps from worker wK" line names a serving worker.
 victim=""
