@@ -10,9 +10,10 @@ links' bandwidth and latency:
                 build, irradiance points, serialize the maps blob
   distribution  every worker fetches the scene and maps blobs (1 MiB chunks,
                 8 in flight per worker) from the coordinator, whose link and
-                serving rate are shared by all; with fan-out the coordinator
-                sends each chunk once and workers pass chunks on down a
-                binary tree (depth log2 W, one chunk of pipelining per level)
+                serving rate are shared by all; with fan-out (as built:
+                coordinator/fanout.c) the coordinator sends each chunk once,
+                to the root worker, and workers pass chunks on down a binary
+                tree (depth log2 W, one chunk of pipelining per level)
   worker build  each worker builds its Embree scene, reads the maps and
                 fills its irradiance texels (in parallel on every worker)
   tiles         the tiles go to W x threads slots, one tile per core at a
@@ -335,8 +336,9 @@ def predict(c, common, W, link_bps=10e9, coord_bps=None, rtt_s=1e-4, fanout=Fals
             return 0.0
         if fanout:
             depth = math.ceil(math.log2(n)) if n > 1 else 0
-            # each node (the coordinator too) passes every chunk on to 2 children
-            rate = min(R_eff / min(2, n), flow / 2 if n > 1 else flow)
+            # the coordinator sends every chunk once (to the root worker);
+            # each worker passes it on to 2 children
+            rate = min(R_eff, flow / 2 if n > 1 else flow)
             return nbytes / rate + depth * (min(CHUNK, nbytes) / (flow / 2) + rtt_s) + rtt_s
         return max(n * nbytes / R_eff, nbytes / flow) + 2 * rtt_s
 

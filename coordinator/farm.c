@@ -250,6 +250,7 @@ void pf_farm_opts_default(pf_farm_opts_t *o)
     o->hello_rate = 100.0;
     o->max_strikes = 8;
     o->blob_window = 8;
+    o->fanout = 2;
     o->send_hwm = 256;
     o->credit_per_thread = 2;
     o->takeover_factor = 4.0;
@@ -288,8 +289,9 @@ static int s_alloc_tables(pf_fm_t *f, const pf_settings_t *s, pf_error_t *err)
         pf_registry_init(&f->reg, maxw, o->hello_rate) != PF_OK)
         return pf_error_set(err, PF_ENOMEM, NULL, 0, "out of memory");
     f->xfer = pf_xfer_new(maxw, o->blob_window);
+    f->fan = pf_fanout_new(maxw, o->fanout);
     f->pix = malloc((size_t)f->ts * (size_t)f->ts * 3 * sizeof *f->pix);
-    if (!f->xfer || !f->pix || pf_fm_verify_init(f) != PF_OK)
+    if (!f->xfer || !f->fan || !f->pix || pf_fm_verify_init(f) != PF_OK)
         return pf_error_set(err, PF_ENOMEM, NULL, 0, "out of memory");
     return PF_OK;
 }
@@ -541,6 +543,8 @@ static int s_on_photons_done(pf_fm_t *f, pf_error_t *err)
     pf_settings_t s = f->ph.settings; /* as a time limit planned them */
     f->jobmsg = (pf_msg_job_t){ f->ph.scene_hash, f->ph.scene_size, f->ph.maps_hash, f->ph.maps_size,
                                 s, f->ph.terms, (uint32_t)f->ts };
+    if (pf_fanout_set_blob(f->fan, &f->ph.maps_fb) != PF_OK)
+        pf_warn("out of memory for the maps' chunk hashes: every worker fetches the maps from here");
     pf_xfer_set_blobs(f->xfer, &f->ph.scene_fb, &f->ph.maps_fb);
     f->job_ready = 1;
     f->pass_start = pf_now();
@@ -583,6 +587,7 @@ static void s_recv_burst(pf_fm_t *f)
             } else if (zmq_msg_size(&id) <= sizeof f->reg.w[0].id) {
                 /* With CURVE, the ZAP handler made the client's public key its User-Id. */
                 const char *key = zmq_msg_gets(&body, "User-Id");
+                f->frame_addr = zmq_msg_gets(&body, "Peer-Address");
                 pf_fm_on_frame(f, zmq_msg_data(&id), zmq_msg_size(&id), key, zmq_msg_data(&body), zmq_msg_size(&body));
             }
         }
@@ -769,6 +774,10 @@ static void s_sum_up(pf_fm_t *f)
     sum->duplicates = f->L.duplicates;
     sum->hellos_dropped = f->reg.hellos_dropped;
     sum->slots_reused = f->reg.reused;
+    if (f->xfer) {
+        pf_xfer_blob_bytes(f->xfer, 0, &sum->scene_blob_size, &sum->scene_blob_sent);
+        pf_xfer_blob_bytes(f->xfer, 1, &sum->maps_blob_size, &sum->maps_blob_sent);
+    }
     for (int i = 0; i < f->reg.nw; i++) {
         const pf_worker_t *w = &f->reg.w[i];
         if (!w->tiles && !w->ph_batches)
@@ -814,6 +823,7 @@ static void s_free(pf_fm_t *f)
         zmq_ctx_term(f->ctx);
     s_remove_ipc(f);
     pf_xfer_destroy(&f->xfer);
+    pf_fanout_free(&f->fan);
     pf_frame_close(&f->ph.frame);
     pf_photon_maps_free(&f->ph.next);
     pf_framed_blob_free(&f->ph.scene_fb);
@@ -895,6 +905,15 @@ void pf_farm_summary_log(const pf_farm_summary_t *s)
             (unsigned long long)s->hellos_dropped, (unsigned long long)s->blocked, (unsigned long long)s->blob_ignored,
             (unsigned long long)s->results_refused, (unsigned long long)s->expired, (unsigned long long)s->stalls,
             (unsigned long long)s->takeovers, (unsigned long long)s->slots_reused);
+    if (s->maps_blob_size)
+        pf_info("summary: blobs from the coordinator: maps %llu bytes sent for %llu bytes of maps (%.2f x), scene "
+                "%llu for %llu (%.2f x); fan-out: %llu worker%s fetched the maps from a peer, %llu sent back here",
+                (unsigned long long)s->maps_blob_sent, (unsigned long long)s->maps_blob_size,
+                (double)s->maps_blob_sent / (double)s->maps_blob_size, (unsigned long long)s->scene_blob_sent,
+                (unsigned long long)s->scene_blob_size,
+                s->scene_blob_size ? (double)s->scene_blob_sent / (double)s->scene_blob_size : 0.0,
+                (unsigned long long)s->fanout_peer, s->fanout_peer == 1 ? "" : "s",
+                (unsigned long long)s->fanout_fallback);
     if (s->verified || s->mismatches)
         pf_info("verify: %llu tile%s checked (%llu rendered here), %llu mismatch%s, %s%s%s, %llu tiles re-rendered",
                 (unsigned long long)s->verified, s->verified == 1 ? "" : "s", (unsigned long long)s->verify_local,

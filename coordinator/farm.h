@@ -48,6 +48,9 @@ typedef struct pf_farm_opts {
     int max_strikes;          /* strikes (malformed or out-of-turn messages, expired leases, stalls) before a
                                  worker is evicted and blocked for the rest of the job (default 8; 0: never) */
     int blob_window;          /* blob chunks in flight per worker, whatever its BLOB_REQ asks (default 8) */
+    int fanout;               /* a worker serves the maps to at most this many other workers (fanout.h; default
+                                 2; 0: every worker fetches from the coordinator; off with CURVE, whose peer
+                                 sockets would be plaintext) */
     int send_hwm;             /* ZMQ_SNDHWM and ZMQ_RCVHWM, in messages per peer (default 256) */
     int credit_per_thread;    /* tiles a worker may hold per thread it announced (default 2); also at most its fair
                                  share of the tiles left, and 2 + the results it has returned */
@@ -78,6 +81,12 @@ typedef struct pf_farm_summary {
     pf_photon_stats_t photons;
     double photon_s, render_s, total_s;
     uint64_t bytes_sent, blob_bytes, results;
+    /* Fan-out: the sizes of the scene and maps blobs over the passes, the
+     * payload bytes of each the coordinator sent; workers told to fetch the
+     * maps from a peer, and told to come back to the coordinator (their
+     * source gone). */
+    uint64_t scene_blob_size, scene_blob_sent, maps_blob_size, maps_blob_sent;
+    uint64_t fanout_peer, fanout_fallback;
     uint64_t reissued, duplicates, malformed, refused;
     int workers_seen, workers_lost;
     /* Hostile peers: what was refused, dropped, evicted. */

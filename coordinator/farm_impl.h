@@ -13,6 +13,7 @@
 #include "coordinator/accum.h"
 #include "coordinator/budget.h"
 #include "coordinator/checkpoint.h"
+#include "coordinator/fanout.h"
 #include "coordinator/leases.h"
 #include "coordinator/ph_batches.h"
 #include "coordinator/progress.h"
@@ -82,6 +83,8 @@ typedef struct pf_fm {
     pf_registry_t reg;
     pf_leases_t L;
     pf_xfer_t *xfer;
+    pf_fanout_t *fan;       /* the maps blob's fan-out tree (fanout.c) */
+    const char *frame_addr; /* the address libzmq gives the frame being handled (Peer-Address), or NULL */
     pf_fm_photons_t ph;
     pf_msg_job_t jobmsg;
     int job_ready;
@@ -219,6 +222,15 @@ int pf_fm_photons_release(pf_fm_t *f, int wi);
 /* The photon thread is joined: the table's figures into the summary, the
  * table freed, a log line. */
 void pf_fm_photons_end(pf_fm_t *f);
+
+/* farm_peers.c: fan-out (the tree: fanout.c) */
+
+/* Before worker wi's JOB: its BLOB_PLAN (where to fetch the maps, and their
+ * chunk hashes); nothing when there is no plan. */
+void pf_fm_fanout_job(pf_fm_t *f, int wi);
+/* Worker wi is dead, gone or evicted: its children still fetching are told
+ * to fetch from the coordinator. */
+void pf_fm_fanout_gone(pf_fm_t *f, int wi);
 
 /* verify.c */
 

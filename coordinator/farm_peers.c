@@ -88,10 +88,12 @@ void pf_fm_declare_dead(pf_fm_t *f, int wi, const char *why)
     f->sum->workers_lost++;
     pf_registry_gone(&f->reg, wi, PF_W_DEAD, pf_now());
     pf_fm_release_worker(f, wi, why);
+    pf_fm_fanout_gone(f, wi);
 }
 
 void pf_fm_send_job(pf_fm_t *f, int wi)
 {
+    pf_fm_fanout_job(f, wi);
     pf_msg_t m = { .type = PF_MSG_JOB };
     m.u.job = f->jobmsg;
     if (pf_fm_send(f, wi, &m) == 0)
@@ -112,6 +114,7 @@ void pf_fm_evict(pf_fm_t *f, int wi, const char *why)
     pf_fm_release_worker(f, wi, "was evicted");
     pf_registry_block(&f->reg, w);
     pf_registry_gone(&f->reg, wi, PF_W_FREE, pf_now());
+    pf_fm_fanout_gone(f, wi);
     f->sum->evicted++;
 }
 
@@ -298,6 +301,8 @@ static void s_on_hello(pf_fm_t *f, const uint8_t *id, size_t idlen, const char *
     w->threads = h->threads;
     w->last_seen = now;
     w->state = PF_W_HELLO;
+    /* Peer sockets are plaintext: no fan-out where CURVE guards the farm. */
+    pf_fanout_hello(f->fan, wi, w->uid, f->frame_addr, f->o->curve_secret ? 0 : h->peer_port);
     if (strcmp(h->fp.git, self.git) != 0) {
         char git[128];
         pf_info("worker %s was built from %s (this coordinator: %s)", w->name,
@@ -413,6 +418,7 @@ static void s_dispatch(pf_fm_t *f, int wi, const pf_msg_t *m)
         }
         pf_fm_release_worker(f, wi, NULL);
         pf_registry_gone(&f->reg, wi, PF_W_FREE, pf_now());
+        pf_fm_fanout_gone(f, wi);
         break;
     default:
         snprintf(why, sizeof why, "%s is not a message for a coordinator", pf_msg_type_name(m->type));
@@ -473,3 +479,36 @@ void pf_fm_on_frame(pf_fm_t *f, const uint8_t *id, size_t idlen, const char *key
     s_dispatch(f, wi, &m);
 }
 
+/* --- fan-out (fanout.h: the tree) -------------------------------------- */
+
+void pf_fm_fanout_job(pf_fm_t *f, int wi)
+{
+    pf_msg_t m = { .type = PF_MSG_BLOB_PLAN };
+    int src = pf_fanout_plan(f->fan, wi, &m.u.plan);
+    if (src == -1)
+        return;
+    if (pf_fm_send(f, wi, &m) != 0)
+        return;
+    if (src >= 0) {
+        f->sum->fanout_peer++;
+        pf_debug("worker %s fetches the maps from worker %s (%s)", f->reg.w[wi].name, f->reg.w[src].name,
+                 m.u.plan.source);
+    }
+}
+
+void pf_fm_fanout_gone(pf_fm_t *f, int wi)
+{
+    int kids[64];
+    int n = pf_fanout_gone(f->fan, wi, kids, 64);
+    for (int k = 0; k < n; k++) {
+        int ci = kids[k];
+        if (f->reg.w[ci].state != PF_W_JOB_SENT)
+            continue; /* it has the maps already, or is gone itself */
+        pf_msg_t m = { .type = PF_MSG_BLOB_PLAN };
+        if (pf_fanout_plan_coordinator(f->fan, &m.u.plan) == -1 || pf_fm_send(f, ci, &m) != 0)
+            continue;
+        f->sum->fanout_fallback++;
+        pf_info("worker %s fetches the maps from the coordinator now: its source, worker %s, is gone",
+                f->reg.w[ci].name, f->reg.w[wi].name);
+    }
+}

@@ -89,6 +89,8 @@ static void s_usage(FILE *f)
             "      --lease-timeout S    a tile not returned S seconds after its lease goes to another worker (120)\n"
             "      --max-strikes N      evict a worker after N offences: malformed, out-of-turn or refused\n"
             "                           messages, expired leases, stalls (8; 0: never)\n"
+            "      --fanout N           workers relay the photon maps to each other, each to at most N\n"
+            "                           (2; 0: every worker fetches them from the coordinator)\n"
             "      --verify FRACTION    render this fraction of the tiles again on a second worker and compare\n"
             "                           bit for bit, besides each worker's first tile; a worker caught\n"
             "                           returning wrong pixels is evicted and its tiles rendered again\n"
@@ -218,7 +220,7 @@ enum {
     OPT_HDR = 256, OPT_SIZE, OPT_SPP, OPT_PHOTONS, OPT_CPHOTONS, OPT_GATHER, OPT_GFILTER, OPT_LSAMPLES, OPT_GK, OPT_CK, OPT_CR,
     OPT_DEPTH, OPT_THREADS, OPT_SEED, OPT_EXPOSURE, OPT_PFILTER, OPT_TERMS, OPT_WORKERS, OPT_BIND, OPT_MINW, OPT_CSECRET,
     OPT_CALLOW, OPT_TILE, OPT_HB, OPT_WATCHDOG, OPT_MAXWAIT, OPT_WEXE, OPT_TLIMIT, OPT_QUALITY, OPT_STRICT,
-    OPT_LEASE, OPT_STRIKES, OPT_VERIFY, OPT_PASSES, OPT_CKPT, OPT_RESUME,
+    OPT_LEASE, OPT_STRIKES, OPT_FANOUT, OPT_VERIFY, OPT_PASSES, OPT_CKPT, OPT_RESUME,
 };
 
 /* SIGINT and SIGTERM. The farm's event loop and the progressive passes poll
@@ -275,6 +277,7 @@ static const struct option s_render_opts[] = {
     { "worker-exe", required_argument, 0, OPT_WEXE }, { "time-limit", required_argument, 0, OPT_TLIMIT },
     { "quality", required_argument, 0, OPT_QUALITY }, { "strict", no_argument, 0, OPT_STRICT },
     { "lease-timeout", required_argument, 0, OPT_LEASE }, { "max-strikes", required_argument, 0, OPT_STRIKES },
+    { "fanout", required_argument, 0, OPT_FANOUT },
     { "verify", required_argument, 0, OPT_VERIFY }, { "passes", required_argument, 0, OPT_PASSES },
     { "checkpoint", required_argument, 0, OPT_CKPT }, { "resume", no_argument, 0, OPT_RESUME },
     { 0, 0, 0, 0 },
@@ -373,6 +376,7 @@ static int s_parse_render_args(int argc, char **argv, s_render_args *a)
         case OPT_MAXWAIT: bad = s_parse_float(optarg, &fval) || fval < 0; farm->max_wait_s = fval; break;
         case OPT_LEASE: bad = s_parse_float(optarg, &fval) || fval <= 0 || fval > 1e6; farm->lease_timeout_s = fval; break;
         case OPT_STRIKES: bad = s_parse_int(optarg, 0, 1000000, &farm->max_strikes); break;
+        case OPT_FANOUT: bad = s_parse_int(optarg, 0, 64, &farm->fanout); break;
         case OPT_VERIFY: bad = s_parse_float(optarg, &fval) || fval < 0 || fval > 1; farm->verify = fval; break;
         case OPT_WEXE: farm->worker_exe = optarg; break;
         case OPT_TLIMIT: bad = s_parse_float(optarg, &a->time_limit) || a->time_limit <= 0 || a->time_limit > 1e7; break;

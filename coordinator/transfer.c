@@ -44,6 +44,10 @@ struct pf_xfer {
     size_t nretired, cap_retired;
     s_slot *slots;
     int nslots, window;
+    /* Payload bytes handed to libzmq per blob (scene, maps), and the sizes
+     * of the distinct blobs served, summed over the passes (fan-out's
+     * figure: sent / size is how many copies left this process). */
+    uint64_t sent[2], sizes[2];
 };
 
 /* ---- framing ---- */
@@ -182,6 +186,10 @@ static void s_retire(pf_xfer_t *x, pf_framed_blob_t *fb)
 
 void pf_xfer_set_blobs(pf_xfer_t *x, pf_framed_blob_t *scene, pf_framed_blob_t *maps)
 {
+    if (scene->data && scene->hash != x->blob[0].hash)
+        x->sizes[0] += scene->size;
+    if (maps->data && maps->hash != x->blob[1].hash)
+        x->sizes[1] += maps->size;
     s_retire(x, &x->blob[0]);
     s_retire(x, &x->blob[1]);
     x->blob[0] = *scene;
@@ -292,6 +300,7 @@ int pf_xfer_pump(pf_xfer_t *x, int slot, void *sock, const uint8_t *id, size_t i
             sent++;
             *payload += len;
             *wire += fb->head + len;
+            x->sent[b] += len;
         }
     }
     return sent;
@@ -307,4 +316,15 @@ int pf_xfer_in_flight(const pf_xfer_t *x, int slot)
 {
     const s_slot *s = &x->slots[slot];
     return s->acct ? atomic_load(&s->acct->part[0].inflight) + atomic_load(&s->acct->part[1].inflight) : 0;
+}
+
+void pf_xfer_blob_bytes(const pf_xfer_t *x, int b, uint64_t *size, uint64_t *sent)
+{
+    *size = x->sizes[b];
+    *sent = x->sent[b];
+}
+
+const pf_framed_blob_t *pf_xfer_blob(const pf_xfer_t *x, int b)
+{
+    return &x->blob[b];
 }

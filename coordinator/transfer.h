@@ -83,4 +83,10 @@ uint32_t pf_xfer_waiting(const pf_xfer_t *x, int slot);
 /* Chunks of the slot's worker inside libzmq now. */
 int pf_xfer_in_flight(const pf_xfer_t *x, int slot);
 
+/* Blob b (0: scene, 1: maps): the sizes of the distinct blobs it has been
+ * over the passes, and the payload bytes of it handed to libzmq. */
+void pf_xfer_blob_bytes(const pf_xfer_t *x, int b, uint64_t *size, uint64_t *sent);
+/* The current blob b (0: scene, 1: maps); data NULL when there is none. */
+const pf_framed_blob_t *pf_xfer_blob(const pf_xfer_t *x, int b);
+
 #endif

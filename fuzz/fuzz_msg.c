@@ -40,6 +40,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 
     float *pixels = NULL;
     pf_msg_photon_t *photons = NULL;
+    uint64_t *leaves = NULL;
     switch (msg.type) {
     case PF_MSG_HELLO: {
         pf_fingerprint_t self = pf_frame_fingerprint();
@@ -88,6 +89,16 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         msg.u.photons.photons = photons;
         break;
     }
+    case PF_MSG_BLOB_PLAN: {
+        const pf_msg_blob_plan_t *p = &msg.u.plan;
+        PF_FUZZ_REQUIRE(p->size >= 1 && p->n >= 1 && p->n <= PF_PROTO_MAX_PLAN_CHUNKS, "BLOB_PLAN counts");
+        leaves = malloc((size_t)p->n * sizeof *leaves);
+        PF_FUZZ_REQUIRE(leaves != NULL, "out of memory");
+        for (uint32_t k = 0; k < p->n; k++)
+            leaves[k] = pf_msg_plan_leaf(p, k);
+        msg.u.plan.leaves = leaves;
+        break;
+    }
     default:
         break;
     }
@@ -101,5 +112,6 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     pf_buf_free(&out);
     free(pixels);
     free(photons);
+    free(leaves);
     return 0;
 }

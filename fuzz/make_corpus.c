@@ -31,6 +31,7 @@
 #include "load/load.h"
 #include "photon/mapfile.h"
 #include "photon/trace.h"
+#include "proto/hashtree.h"
 #include "proto/messages.h"
 #include "proto/sceneblob.h"
 #include "render/frame.h"
@@ -85,6 +86,7 @@ static void s_messages(void)
     m.type = PF_MSG_HELLO;
     m.u.hello.fp = pf_frame_fingerprint();
     m.u.hello.threads = 8;
+    m.u.hello.peer_port = 40001;
     snprintf(m.u.hello.name, sizeof m.u.hello.name, "node7:4242");
     s_put_msg("seed-hello", &m);
 
@@ -191,6 +193,16 @@ static void s_messages(void)
     m.u.photons = (pf_msg_photons_t){ .batch = 12, .total = 40, .first = 37, .rejected = 1, .indirect = 20, .n = 3,
                                       .photons = ph };
     s_put_msg("seed-photons", &m);
+
+    uint64_t leaves[3] = { 0x1111, 0x2222, 0x3333 };
+    memset(&m, 0, sizeof m);
+    m.type = PF_MSG_BLOB_PLAN;
+    m.job = 7;
+    m.u.plan = (pf_msg_blob_plan_t){ .hash = 0xfeedbeef, .size = 2 * PF_PROTO_CHUNK_SIZE + 1, .source_uid = 2, .n = 3,
+                                     .leaves = leaves };
+    m.u.plan.root = pf_chunk_root(m.u.plan.hash, m.u.plan.size, leaves, 3);
+    snprintf(m.u.plan.source, sizeof m.u.plan.source, "tcp://10.0.0.2:40001");
+    s_put_msg("seed-blob-plan", &m);
 }
 
 /* ---- scene blobs and photon maps ---- */

@@ -13,7 +13,7 @@
  *
  * Bodies on the wire, after the 16-byte header (str: u16 length + bytes):
  *   HELLO       u16 protocol, u16 photon_size, u16 float_size, u16 map_version,
- *               str git, u32 threads, str name
+ *               str git, u32 threads, str name, u16 peer_port
  *   WELCOME     u32 worker_id, u32 heartbeat_ms
  *   REFUSE      str reason
  *   HEARTBEAT   u64 progress, u32 tiles_held
@@ -31,6 +31,9 @@
  *   PHOTONS     u32 batch, u64 total, first, rejected, indirect, u32 n, then n
  *               photons of 32 bytes (f32 pos[3], f32 power[3], u32 dir,
  *               u32 normal) to the end of the frame
+ *   BLOB_PLAN   u64 hash, u64 size, u32 source_uid, str source, u64 root,
+ *               u32 n, then n u64 chunk hashes to the end of the frame
+ *               (n = chunks of size; root = pf_chunk_root of them)
  *
  * Owns nothing: decoded chunk data and result pixels point into the frame.
  * Reentrant; any thread may encode or decode. */
@@ -42,8 +45,12 @@
 #include <stdio.h>
 #include <string.h>
 
+#include "base/hash.h"
 #include "base/status.h"
 #include "base/wire.h"
+#include "proto/hashtree.h"
+
+_Static_assert(PF_HASHTREE_CHUNK == PF_PROTO_CHUNK_SIZE, "chunk hashes cover exactly one BLOB_CHUNK each");
 
 #ifndef PF_GIT_HASH
 #define PF_GIT_HASH "unknown"
@@ -65,7 +72,7 @@ static const char *const s_type_names[] = {
     [PF_MSG_HEARTBEAT] = "HEARTBEAT", [PF_MSG_JOB] = "JOB",         [PF_MSG_BLOB_REQ] = "BLOB_REQ",
     [PF_MSG_BLOB_CHUNK] = "BLOB_CHUNK", [PF_MSG_READY] = "READY",   [PF_MSG_TILE] = "TILE",
     [PF_MSG_RESULT] = "RESULT",       [PF_MSG_JOB_END] = "JOB_END", [PF_MSG_BYE] = "BYE",
-    [PF_MSG_PHOTON_REQ] = "PHOTON_REQ", [PF_MSG_PHOTONS] = "PHOTONS",
+    [PF_MSG_PHOTON_REQ] = "PHOTON_REQ", [PF_MSG_PHOTONS] = "PHOTONS", [PF_MSG_BLOB_PLAN] = "BLOB_PLAN",
 };
 
 const char *pf_msg_type_name(int type)
@@ -461,12 +468,47 @@ static int s_check(const pf_msg_t *m, char *why, size_t why_len)
         }
         return 0;
     }
+    case PF_MSG_BLOB_PLAN: {
+        const pf_msg_blob_plan_t *p = &m->u.plan;
+        if (s_bad_str(why, why_len, "source", p->source, sizeof p->source))
+            return 1;
+        if (p->source[0] && strncmp(p->source, "tcp://", 6) != 0) {
+            s_whyf(why, why_len, "source does not begin with tcp://");
+            return 1;
+        }
+        for (const char *c = p->source; *c; c++)
+            if (*c <= ' ' || *c > '~') {
+                s_whyf(why, why_len, "source holds a byte 0x%02x that is not printable", (unsigned)(uint8_t)*c);
+                return 1;
+            }
+        if (p->size == 0 || p->size > (uint64_t)PF_PROTO_MAX_PLAN_CHUNKS * PF_PROTO_CHUNK_SIZE ||
+            p->n != pf_chunk_count(p->size)) {
+            s_whyf(why, why_len, "n %" PRIu32 " chunk hashes for a blob of %" PRIu64 " bytes", p->n, p->size);
+            return 1;
+        }
+        return 0;
+    }
     }
     s_whyf(why, why_len, "unknown message type %d", (int)m->type);
     return 1;
 }
 
 /* ---- encoding ---- */
+
+/* BLOB_PLAN's body (its root checked by the caller). */
+static int s_enc_plan(pf_buf_t *out, const pf_msg_blob_plan_t *pl)
+{
+    int rc = 0;
+    W(pf_wr_u64(out, pl->hash));
+    W(pf_wr_u64(out, pl->size));
+    W(pf_wr_u32(out, pl->source_uid));
+    W(pf_wr_str(out, pl->source));
+    W(pf_wr_u64(out, pl->root));
+    W(pf_wr_u32(out, pl->n));
+    for (uint32_t k = 0; k < pl->n && rc == 0; k++)
+        W(pf_wr_u64(out, pl->leaves[k]));
+    return rc;
+}
 
 int pf_msg_encode(const pf_msg_t *msg, pf_buf_t *out)
 {
@@ -496,6 +538,10 @@ int pf_msg_encode(const pf_msg_t *msg, pf_buf_t *out)
                     return PF_EINVAL;
     }
 
+    const pf_msg_blob_plan_t *pl = &msg->u.plan;
+    if (msg->type == PF_MSG_BLOB_PLAN && (!pl->leaves || pf_chunk_root(pl->hash, pl->size, pl->leaves, pl->n) != pl->root))
+        return PF_EINVAL;
+
     int rc = 0;
     W(pf_wr_u32(out, PF_PROTO_MAGIC));
     W(pf_wr_u16(out, PF_PROTO_VERSION));
@@ -511,6 +557,7 @@ int pf_msg_encode(const pf_msg_t *msg, pf_buf_t *out)
         W(pf_wr_str(out, h->fp.git));
         W(pf_wr_u32(out, h->threads));
         W(pf_wr_str(out, h->name));
+        W(pf_wr_u16(out, h->peer_port));
         break;
     }
     case PF_MSG_WELCOME:
@@ -600,6 +647,9 @@ int pf_msg_encode(const pf_msg_t *msg, pf_buf_t *out)
             W(pf_wr_u32(out, q->normal));
         }
         break;
+    case PF_MSG_BLOB_PLAN:
+        W(s_enc_plan(out, pl));
+        break;
     }
     if (rc != 0)
         out->len = 0;
@@ -642,6 +692,48 @@ static void s_dec_photons(s_dec_t *d, pf_msg_photons_t *p)
     }
 }
 
+static uint64_t s_le64(const uint8_t *q)
+{
+    uint64_t v = 0;
+    for (int i = 7; i >= 0; i--)
+        v = v << 8 | q[i];
+    return v;
+}
+
+uint64_t pf_msg_plan_leaf(const pf_msg_blob_plan_t *p, uint32_t k)
+{
+    return p->leaves ? p->leaves[k] : s_le64(p->leaves_le + 8 * (size_t)k);
+}
+
+/* BLOB_PLAN: the fields, then exactly n leaves to the end of the frame,
+ * whose root must be the one sent (a plan damaged on the way is refused). */
+static void s_dec_plan(s_dec_t *d, pf_msg_blob_plan_t *p)
+{
+    p->hash = s_u64(d, "hash");
+    p->size = s_u64(d, "size");
+    p->source_uid = s_u32(d, "source_uid");
+    s_str(d, "source", p->source, sizeof p->source);
+    p->root = s_u64(d, "root");
+    p->n = s_u32(d, "n");
+    if (d->failed)
+        return;
+    if (p->n > PF_PROTO_MAX_PLAN_CHUNKS) {
+        s_fail(d, "n %" PRIu32 " is over %u chunk hashes a message", p->n, (unsigned)PF_PROTO_MAX_PLAN_CHUNKS);
+        return;
+    }
+    size_t want = (size_t)p->n * 8;
+    if (d->r.left != want) {
+        s_fail(d, "%zu bytes of chunk hashes for n %" PRIu32 " (%zu expected)", d->r.left, p->n, want);
+        return;
+    }
+    p->leaves_le = pf_rd_bytes(&d->r, want);
+    uint64_t h = pf_chunk_root(p->hash, p->size, NULL, 0);
+    for (uint32_t k = 0; k < p->n; k++)
+        h = pf_hash_u64(h, s_le64(p->leaves_le + 8 * (size_t)k));
+    if (h != p->root)
+        s_fail(d, "the chunk hashes' root is %016" PRIx64 ", not the %016" PRIx64 " sent", h, p->root);
+}
+
 static void s_dec_body(s_dec_t *d, pf_msg_t *m)
 {
     switch (m->type) {
@@ -654,6 +746,7 @@ static void s_dec_body(s_dec_t *d, pf_msg_t *m)
         s_str(d, "fingerprint.git", h->fp.git, sizeof h->fp.git);
         h->threads = s_u32(d, "threads");
         s_str(d, "name", h->name, sizeof h->name);
+        h->peer_port = s_u16(d, "peer_port");
         break;
     }
     case PF_MSG_WELCOME:
@@ -765,6 +858,9 @@ static void s_dec_body(s_dec_t *d, pf_msg_t *m)
         break;
     case PF_MSG_PHOTONS:
         s_dec_photons(d, &m->u.photons);
+        break;
+    case PF_MSG_BLOB_PLAN:
+        s_dec_plan(d, &m->u.plan);
         break;
     }
 }

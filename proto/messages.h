@@ -30,6 +30,13 @@
  *           ◀────────── PHOTON_REQ(job, scene blob, settings, batches first..+count)
  *   worker  BLOB_REQ for the scene blob, if it does not hold it
  *   worker  PHOTONS(job, batch, part) ...    each batch's stored photons, in parts
+ *   Fan-out (6): the coordinator sends BLOB_PLAN(maps hash, chunk hashes,
+ *   source) just before the JOB; with a worker as source, the worker sends
+ *   its BLOB_REQs for that blob to the source's peer socket (a ROUTER whose
+ *   port the source announced in its HELLO) and gets BLOB_CHUNKs from it,
+ *   each checked against its chunk hash; a bad chunk, or a source silent
+ *   for a few seconds, and it fetches the rest from the coordinator. A
+ *   BLOB_PLAN with source "" (its source died) says the same.
  *   both    HEARTBEAT about once a second (any message counts as alive)
  *   either  BYE                              leaving (worker) / shutting down (coordinator)
  */
@@ -43,7 +50,8 @@
 #include "scene/scene.h"
 
 #define PF_PROTO_MAGIC 0x4d524650u /* "PFRM" read as little-endian bytes 'P','F','R','M' */
-#define PF_PROTO_VERSION 5 /* 3: settings carry the progressive pass; 4: and the pixel filter; 5: PHOTON_REQ, PHOTONS */
+#define PF_PROTO_VERSION 6 /* 3: settings carry the progressive pass; 4: and the pixel filter; 5: PHOTON_REQ, PHOTONS;
+                              6: HELLO carries peer_port, BLOB_PLAN (fan-out) */
 #define PF_PROTO_HEADER_SIZE 16
 #define PF_PROTO_MAX_STRING PF_WIRE_MAX_STRING
 #define PF_PROTO_CHUNK_SIZE (1u << 20)            /* blob chunk payload */
@@ -54,6 +62,8 @@
 #define PF_PROTO_PHOTON_BYTES 32u                /* one photon on the wire */
 #define PF_PROTO_MAX_PART_PHOTONS (PF_PROTO_CHUNK_SIZE / PF_PROTO_PHOTON_BYTES) /* photons a PHOTONS carries */
 #define PF_PROTO_MAX_BATCH_PHOTONS (UINT64_C(1) << 32) /* photons one batch may store, at most */
+#define PF_PROTO_MAX_PLAN_CHUNKS (PF_PROTO_CHUNK_SIZE / 8u) /* chunk hashes one BLOB_PLAN carries (a 128 GiB blob) */
+#define PF_PROTO_MAX_SOURCE 128u                /* bytes of a BLOB_PLAN source endpoint, NUL included */
 
 typedef enum {
     PF_MSG_HELLO = 1,
@@ -70,7 +80,8 @@ typedef enum {
     PF_MSG_BYE = 12,
     PF_MSG_PHOTON_REQ = 13,
     PF_MSG_PHOTONS = 14,
-    PF_MSG_MAX_TYPE = 14
+    PF_MSG_BLOB_PLAN = 15,
+    PF_MSG_MAX_TYPE = 15
 } pf_msg_type;
 
 /* The build fingerprint a worker must share with the coordinator. */
@@ -95,6 +106,7 @@ typedef struct pf_msg_hello {
     pf_fingerprint_t fp;
     uint32_t threads;
     char name[256];          /* "host:pid" or a --name */
+    uint16_t peer_port;      /* TCP port where it serves blob chunks to other workers; 0: it serves none */
 } pf_msg_hello_t;
 
 typedef struct pf_msg_welcome {
@@ -176,6 +188,20 @@ typedef struct pf_msg_photons {
     const pf_msg_photon_t *photons; /* encode: the n photons to send */
 } pf_msg_photons_t;
 
+/* Where to fetch a blob from, and its chunk hashes (proto/hashtree.h):
+ * sent by the coordinator before the JOB that names the blob, and again
+ * when the source died. source "" is the coordinator itself; else a
+ * worker's peer socket, "tcp://ADDR:PORT". */
+typedef struct pf_msg_blob_plan {
+    uint64_t hash, size;     /* the blob; size >= 1 */
+    uint32_t source_uid;     /* the serving worker's id (0: the coordinator), for logs */
+    char source[PF_PROTO_MAX_SOURCE]; /* "" or "tcp://..." (printable ASCII) */
+    uint64_t root;           /* pf_chunk_root over the leaves; checked on decode */
+    uint32_t n;              /* leaves: exactly pf_chunk_count(size), <= PF_PROTO_MAX_PLAN_CHUNKS */
+    const uint8_t *leaves_le; /* decode: n little-endian u64 inside the frame (pf_msg_plan_leaf) */
+    const uint64_t *leaves;  /* encode: the n leaves to send */
+} pf_msg_blob_plan_t;
+
 typedef struct pf_msg_bye {
     char reason[256];
 } pf_msg_bye_t;
@@ -199,6 +225,7 @@ typedef struct pf_msg {
         pf_msg_bye_t bye;
         pf_msg_photon_req_t photon_req;
         pf_msg_photons_t photons;
+        pf_msg_blob_plan_t plan;
     } u;
 } pf_msg_t;
 
@@ -216,6 +243,9 @@ void pf_msg_result_pixels(const pf_msg_result_t *r, float *dst);
 
 /* Photon i (< p->n) of a decoded PHOTONS. */
 void pf_msg_photon_get(const pf_msg_photons_t *p, uint32_t i, pf_msg_photon_t *out);
+
+/* Leaf k (< p->n) of a decoded BLOB_PLAN. */
+uint64_t pf_msg_plan_leaf(const pf_msg_blob_plan_t *p, uint32_t k);
 
 const char *pf_msg_type_name(int type);
 

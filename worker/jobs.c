@@ -29,11 +29,13 @@
 #include "base/hash.h"
 #include "base/reserve.h"
 #include "photon/mapfile.h"
+#include "proto/hashtree.h"
 #include "worker/worker_impl.h"
 
 #define S_WINDOW 8                /* blob chunks requested ahead */
 #define S_MAX_BLOBS 4             /* complete blobs kept (LRU) */
 #define S_STALL_S 10.0            /* a transfer with no chunk for this long is requested again */
+#define S_PEER_STALL_S 4.0        /* a peer source silent for this long: the rest comes from the coordinator */
 #define S_MAX_BLOB_SIZE (UINT64_C(1) << 36) /* 64 GiB: anything larger is not a scene or a map */
 #define S_BLOB_FIRST_ALLOC (UINT64_C(4) << 20) /* a blob's first buffer; it doubles as chunks arrive */
 
@@ -85,6 +87,7 @@ static s_blob *s_blob_find(s_worker *w, uint64_t hash, uint64_t size)
 static void s_blob_remove(s_worker *w, size_t i)
 {
     free(w->blobs[i]->data);
+    free(w->blobs[i]->leaves);
     free(w->blobs[i]);
     w->blobs[i] = w->blobs[--w->nblobs];
 }
@@ -176,7 +179,12 @@ static void s_blob_request(s_worker *w, s_blob *b)
     m.u.blob_req.hash = b->hash;
     m.u.blob_req.offset = b->requested;
     m.u.blob_req.credit = (uint32_t)credit;
-    pf_w_send(w, &m, 0);
+    if (b->from_peer && pf_w_peer_send(w, &m) != 0) {
+        pf_w_peers_strike_source(w, "cannot send it a BLOB_REQ");
+        b->from_peer = 0;
+    }
+    if (!b->from_peer)
+        pf_w_send(w, &m, 0);
     b->requested += credit * chunk;
     if (b->requested > b->size)
         b->requested = b->size;
@@ -220,6 +228,7 @@ s_blob *pf_w_blob_get(s_worker *w, uint64_t hash, uint64_t size, const char *wha
     b->used = ++w->tick;
     w->blobs[w->nblobs++] = b;
     pf_w_log(w, PF_LOG_INFO, "fetching the %s blob %016" PRIx64 " (%.1f MB)", what, hash, (double)size / 1e6);
+    pf_w_peers_attach(w, b);
     s_blob_restart(w, b);
     return b;
 }
@@ -374,11 +383,38 @@ void pf_w_on_job(s_worker *w, const pf_msg_t *m)
     s_job_advance(w);
 }
 
-void pf_w_on_chunk(s_worker *w, const pf_msg_blob_chunk_t *c)
+void pf_w_blob_fallback(s_worker *w, s_blob *b, const char *why)
+{
+    pf_w_log(w, PF_LOG_WARN, "blob %016" PRIx64 ": fetching the rest (from byte %" PRIu64 ") from the coordinator: %s",
+             b->hash, b->received, why);
+    b->from_peer = 0;
+    s_blob_restart(w, b);
+}
+
+/* Chunk k of b against its chunk hash (a blob without a plan: nothing to
+ * check before the whole-blob hash). 1 when it may be stored. */
+static int s_chunk_ok(s_worker *w, s_blob *b, const pf_msg_blob_chunk_t *c, int from_peer)
+{
+    uint64_t k = c->offset / PF_PROTO_CHUNK_SIZE;
+    if (!b->leaves || k >= b->nleaves || pf_chunk_hash(b->hash, k, c->data, c->len) == b->leaves[k])
+        return 1;
+    char why[200];
+    snprintf(why, sizeof why, "chunk %" PRIu64 " of blob %016" PRIx64 " does not match its chunk hash", k, b->hash);
+    if (from_peer) {
+        pf_w_peers_strike_source(w, why);
+        pf_w_blob_fallback(w, b, why);
+    } else {
+        pf_w_log(w, PF_LOG_WARN, "%s (from the coordinator); asking again", why);
+        s_blob_restart(w, b);
+    }
+    return 0;
+}
+
+void pf_w_on_chunk(s_worker *w, const pf_msg_blob_chunk_t *c, int from_peer)
 {
     s_blob *b = s_blob_find(w, c->hash, c->total);
-    if (!b || b->complete) {
-        pf_w_log(w, PF_LOG_DEBUG, "chunk of blob %016" PRIx64 " not being fetched; dropped", c->hash);
+    if (!b || b->complete || b->from_peer != from_peer) {
+        pf_w_log(w, PF_LOG_DEBUG, "chunk of blob %016" PRIx64 " not being fetched (from there); dropped", c->hash);
         return;
     }
     uint64_t expect = b->size - b->received < PF_PROTO_CHUNK_SIZE ? b->size - b->received : PF_PROTO_CHUNK_SIZE;
@@ -403,9 +439,12 @@ void pf_w_on_chunk(s_worker *w, const pf_msg_blob_chunk_t *c)
             pf_w_log(w, PF_LOG_ERROR, "%s", why);
         return;
     }
+    if (!s_chunk_ok(w, b, c, from_peer))
+        return;
     memcpy(b->data + b->received, c->data, c->len);
     b->received += c->len;
     b->last_chunk = pf_now();
+    pf_w_peers_pump(w); /* relayed at once to the workers fetching from this one */
     if (b->received < b->size) {
         s_blob_request(w, b);
         return;
@@ -414,6 +453,7 @@ void pf_w_on_chunk(s_worker *w, const pf_msg_blob_chunk_t *c)
     if (h != b->hash) {
         b->failures++;
         b->received = b->requested = 0;
+        b->from_peer = 0;
         if (b->failures < 2) {
             pf_w_log(w, PF_LOG_WARN, "blob %016" PRIx64 " arrived with content hash %016" PRIx64 "; fetching it again",
                      b->hash, h);
@@ -581,7 +621,12 @@ void pf_w_blobs_check_stalls(s_worker *w, double now)
 {
     for (size_t i = 0; i < w->nblobs; i++) {
         s_blob *b = w->blobs[i];
-        if (!b->complete && s_blob_needed(w, b) && now - b->last_chunk > S_STALL_S) {
+        if (!b->complete && b->from_peer && now - b->last_chunk > S_PEER_STALL_S) {
+            char why[80];
+            snprintf(why, sizeof why, "its source sent nothing for %.0f s", S_PEER_STALL_S);
+            pf_w_peers_strike_source(w, why);
+            pf_w_blob_fallback(w, b, why);
+        } else if (!b->complete && s_blob_needed(w, b) && now - b->last_chunk > S_STALL_S) {
             pf_w_log(w, PF_LOG_WARN, "transfer of blob %016" PRIx64 " stalled at %" PRIu64 " of %" PRIu64
                      " bytes; asking again", b->hash, b->received, b->size);
             s_blob_restart(w, b);

@@ -65,6 +65,7 @@ static void s_send_hello(s_worker *w)
     if (w->opts->fake_protocol > 0)
         m.u.hello.fp.protocol = (uint16_t)w->opts->fake_protocol;
     m.u.hello.threads = (uint32_t)w->threads;
+    m.u.hello.peer_port = w->peer_port;
     snprintf(m.u.hello.name, sizeof m.u.hello.name, "%s", w->name);
     if (pf_msg_encode(&m, &w->enc)) {
         pf_w_log(w, PF_LOG_ERROR, "cannot encode HELLO");
@@ -314,7 +315,8 @@ static void s_on_message(s_worker *w, const uint8_t *frame, size_t len)
     case PF_MSG_WELCOME: pf_w_log(w, PF_LOG_DEBUG, "a second WELCOME; ignored"); break;
     case PF_MSG_REFUSE: s_refused(w, m.u.refuse.reason); break;
     case PF_MSG_JOB: pf_w_on_job(w, &m); break;
-    case PF_MSG_BLOB_CHUNK: pf_w_on_chunk(w, &m.u.chunk); break;
+    case PF_MSG_BLOB_CHUNK: pf_w_on_chunk(w, &m.u.chunk, 0); break;
+    case PF_MSG_BLOB_PLAN: pf_w_on_plan(w, &m); break;
     case PF_MSG_TILE: pf_w_on_tile(w, &m); break;
     case PF_MSG_PHOTON_REQ: pf_w_on_photon_req(w, &m); break;
     case PF_MSG_JOB_END:
@@ -351,7 +353,9 @@ static void s_on_message(s_worker *w, const uint8_t *frame, size_t len)
  * flood). Multi-frame messages are not part of the protocol and are dropped. */
 static void s_receive(s_worker *w)
 {
-    for (int i = 0; i < S_MAX_RECV_PER_WAKE && w->sock && !w->finished; i++) {
+    /* Never long (a stream of blob chunks must not keep the heartbeats back). */
+    double t0 = pf_now();
+    for (int i = 0; i < S_MAX_RECV_PER_WAKE && w->sock && !w->finished && pf_now() - t0 < 0.05; i++) {
         zmq_msg_t msg;
         zmq_msg_init(&msg);
         if (zmq_msg_recv(&msg, w->sock, ZMQ_DONTWAIT) < 0) {
@@ -486,6 +490,10 @@ static int s_setup(s_worker *w, const pf_worker_opts_t *opts)
         fprintf(stderr, "photonfarm-worker: cannot create a ZeroMQ context: %s\n", zmq_strerror(errno));
         return PF_WORKER_EXIT_FATAL;
     }
+    if (pf_w_peers_open(w) != 0) {
+        fprintf(stderr, "photonfarm-worker: cannot create the peer socket: %s\n", zmq_strerror(errno));
+        return PF_WORKER_EXIT_FATAL;
+    }
     return pf_w_compute_start(w) != 0 ? PF_WORKER_EXIT_FATAL : 0;
 }
 
@@ -496,6 +504,7 @@ static void s_teardown(s_worker *w)
     if (w->sock || w->monitor)
         s_close_socket(w, S_LINGER_MS);
     pf_w_outbox_clear(w);
+    pf_w_peers_close(w);
     if (w->zctx)
         zmq_ctx_term(w->zctx);
     pf_w_cache_free(w);
@@ -533,7 +542,7 @@ int pf_worker_run(const pf_worker_opts_t *opts)
                 break;
         }
         pf_w_flush(w);
-        zmq_pollitem_t items[3];
+        zmq_pollitem_t items[5];
         int n = 0, i_sock = -1, i_mon = -1;
         items[n++] = (zmq_pollitem_t){ NULL, w->q.wake[0], ZMQ_POLLIN, 0 };
         if (w->sock) {
@@ -547,7 +556,12 @@ int pf_worker_run(const pf_worker_opts_t *opts)
             i_mon = n;
             items[n++] = (zmq_pollitem_t){ w->monitor, 0, ZMQ_POLLIN, 0 };
         }
-        int rc = zmq_poll(items, n, S_POLL_MS);
+        if (w->psrv) /* peers.c reads both peer sockets after every wake-up */
+            items[n++] = (zmq_pollitem_t){ w->psrv, 0, ZMQ_POLLIN, 0 };
+        if (w->pfetch)
+            items[n++] = (zmq_pollitem_t){ w->pfetch, 0, ZMQ_POLLIN, 0 };
+        /* A child waiting for chunks held back by libzmq's queue: look again soon. */
+        int rc = zmq_poll(items, n, pf_w_peers_busy(w) ? 10 : S_POLL_MS);
         if (rc < 0) {
             if (errno == EINTR)
                 continue;
@@ -561,6 +575,8 @@ int pf_worker_run(const pf_worker_opts_t *opts)
             s_on_monitor(w);
         if (!w->finished && i_sock >= 0 && w->sock && (items[i_sock].revents & ZMQ_POLLIN))
             s_receive(w);
+        if (!w->finished)
+            pf_w_peers_on_poll(w);
         if (!w->finished)
             s_timers(w);
     }

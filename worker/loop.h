@@ -27,6 +27,9 @@ typedef struct pf_worker_opts {
                                       served us and then cannot be reached again (else: reconnect, serve the next) */
     const volatile sig_atomic_t *stop; /* set non-zero (e.g. by a signal handler) to leave; may be NULL */
     int fake_protocol;             /* tests only: announce this protocol version in HELLO (0: the real one) */
+    int peer_port;                 /* serve blob chunks to other workers on this TCP port (0: any free one,
+                                      but none for an ipc:// coordinator; < 0: serve none); loopback only
+                                      when the coordinator is local; never with CURVE */
 } pf_worker_opts_t;
 
 /* Serves coordinators until *opts->stop is set, or a BYE or a refusal

@@ -38,6 +38,11 @@ static void s_usage(FILE *f)
             "  -n, --name NAME               name in logs and on the coordinator (default: host:pid)\n"
             "      --curve-key FILE          this worker's CURVE key pair (photonfarm keygen)\n"
             "      --curve-server-key FILE   the coordinator's CURVE public key\n"
+            "      --peer-port N             serve the blobs this worker holds to other workers on TCP\n"
+            "                                port N (0, the default: any free port; loopback only when\n"
+            "                                the coordinator is local; off with CURVE, and with an\n"
+            "                                ipc:// coordinator unless N is given)\n"
+            "      --no-peers                serve no other worker\n"
             "      --exit-on-bye             exit when the coordinator says goodbye, or is gone once\n"
             "                                served (default: wait for the next one)\n"
             "  -q, --quiet                   only errors\n"
@@ -63,7 +68,7 @@ static int s_usage_error(const char *fmt, const char *arg)
 
 int main(int argc, char **argv)
 {
-    enum { OPT_CURVE_KEY = 256, OPT_CURVE_SERVER_KEY, OPT_EXIT_ON_BYE, OPT_VERSION, OPT_FAKE_PROTOCOL };
+    enum { OPT_CURVE_KEY = 256, OPT_CURVE_SERVER_KEY, OPT_EXIT_ON_BYE, OPT_VERSION, OPT_FAKE_PROTOCOL, OPT_PEER_PORT, OPT_NO_PEERS };
     static const struct option longopts[] = {
         { "connect", required_argument, NULL, 'c' },
         { "threads", required_argument, NULL, 't' },
@@ -76,6 +81,8 @@ int main(int argc, char **argv)
         { "help", no_argument, NULL, 'h' },
         { "version", no_argument, NULL, OPT_VERSION },
         { "fake-protocol", required_argument, NULL, OPT_FAKE_PROTOCOL },
+        { "peer-port", required_argument, NULL, OPT_PEER_PORT },
+        { "no-peers", no_argument, NULL, OPT_NO_PEERS },
         { NULL, 0, NULL, 0 },
     };
     pf_worker_opts_t o;
@@ -103,6 +110,16 @@ int main(int argc, char **argv)
         case OPT_CURVE_KEY: o.curve_key = optarg; break;
         case OPT_CURVE_SERVER_KEY: o.curve_server_key = optarg; break;
         case OPT_EXIT_ON_BYE: o.exit_on_bye = 1; break;
+        case OPT_NO_PEERS: o.peer_port = -1; break;
+        case OPT_PEER_PORT: {
+            char *end;
+            errno = 0;
+            long v = strtol(optarg, &end, 10);
+            if (errno || end == optarg || *end || v < 0 || v > 65535)
+                return s_usage_error("--peer-port wants a number from 0 to 65535, not '%s'", optarg);
+            o.peer_port = (int)v;
+            break;
+        }
         case OPT_FAKE_PROTOCOL: {
             char *end;
             errno = 0;

@@ -48,7 +48,37 @@ typedef struct s_blob {
     int pins;           /* BUILD items reading data */
     uint64_t used;      /* LRU tick */
     double last_chunk;  /* pf_now() of the last chunk (or of the request) */
+    uint64_t *leaves;   /* chunk hashes from the coordinator's BLOB_PLAN (each chunk is checked), or NULL */
+    uint32_t nleaves;
+    int from_peer;      /* its chunks come from the peer source (peers.c), not the coordinator */
 } s_blob;
+
+/* peers.c: a worker this one serves blob chunks to (a routing identity on
+ * the peer ROUTER) and the range it asked: chunks [next, hi) of blob hash. */
+#define S_MAX_CHILDREN 8
+typedef struct s_child {
+    int used;
+    uint8_t id[256];
+    size_t idlen;
+    uint64_t hash, size, job;
+    uint32_t next, hi;
+    double last;
+} s_child;
+
+/* peers.c: strikes against a peer's routing identity (bounded table). */
+typedef struct s_strike {
+    uint8_t id[256];
+    size_t idlen;
+    int n;
+} s_strike;
+
+/* peers.c: the coordinator's latest BLOB_PLAN. */
+typedef struct s_plan {
+    uint64_t hash, size;
+    uint32_t n;
+    uint64_t *leaves;
+    char source[PF_PROTO_MAX_SOURCE];
+} s_plan;
 
 /* What a job needs to render, built once per (scene hash, maps hash,
  * settings hash): the maps were validated against the settings hash, so a
@@ -171,6 +201,23 @@ typedef struct s_worker {
     atomic_uint_fast64_t progress; /* pixels rendered since start */
     uint32_t tiles_held;           /* TILEs received and not yet answered or dropped */
 
+    /* peers.c: fan-out. The ROUTER serving other workers and its port (0:
+     * none), the children served, strikes; the DEALER to the current
+     * source, sources struck; the last plan. */
+    void *psrv;
+    uint16_t peer_port;
+    s_child children[S_MAX_CHILDREN];
+    s_strike strikes[16];
+    int nstrikes;
+    unsigned peer_malformed;
+    uint64_t peer_bytes_served;
+    void *pfetch;
+    char pfetch_ep[PF_PROTO_MAX_SOURCE];
+    char bad_src[4][PF_PROTO_MAX_SOURCE];
+    int nbad_src;
+    s_plan plan;
+    pf_buf_t penc;
+
     int finished, exit_code;
 } s_worker;
 
@@ -178,7 +225,10 @@ typedef struct s_worker {
 
 /* Message handlers for JOB, BLOB_CHUNK and TILE. */
 void pf_w_on_job(s_worker *w, const pf_msg_t *m);
-void pf_w_on_chunk(s_worker *w, const pf_msg_blob_chunk_t *c);
+void pf_w_on_chunk(s_worker *w, const pf_msg_blob_chunk_t *c, int from_peer);
+/* The rest of blob b comes from the coordinator (its peer source failed:
+ * why says how), from its first byte not yet held. */
+void pf_w_blob_fallback(s_worker *w, s_blob *b, const char *why);
 void pf_w_on_tile(s_worker *w, const pf_msg_t *m);
 /* Cancels the current job (if any); why goes to the debug log. */
 void pf_w_job_drop(s_worker *w, const char *why);
@@ -195,6 +245,29 @@ void pf_w_cache_free(s_worker *w);
 s_blob *pf_w_blob_get(s_worker *w, uint64_t hash, uint64_t size, const char *what);
 /* Drops transfers no job needs and the least recently used blobs. */
 void pf_w_blobs_trim(s_worker *w);
+
+/* ---- peers.c: fan-out (main thread) ---- */
+
+/* Binds the peer ROUTER (unless opts->peer_port < 0 or CURVE is on); the
+ * port lands in w->peer_port. 0, or -1 when no socket can be made. */
+int pf_w_peers_open(s_worker *w);
+/* Closes both peer sockets and frees the plan (before zmq_ctx_term). */
+void pf_w_peers_close(s_worker *w);
+/* A BLOB_PLAN from the coordinator. */
+void pf_w_on_plan(s_worker *w, const pf_msg_t *m);
+/* A new blob transfer: the plan's chunk hashes and, when the plan names a
+ * usable peer, the peer as its source (b->from_peer). */
+void pf_w_peers_attach(s_worker *w, s_blob *b);
+/* The current source misbehaved (why): never used again; its socket closed. */
+void pf_w_peers_strike_source(s_worker *w, const char *why);
+/* Sends m (a BLOB_REQ) to the current source. 0, or -1 (then ask the coordinator). */
+int pf_w_peer_send(s_worker *w, const pf_msg_t *m);
+/* Receives from both peer sockets without blocking, and pumps. */
+void pf_w_peers_on_poll(s_worker *w);
+/* Sends the children what they asked and this worker holds. */
+void pf_w_peers_pump(s_worker *w);
+/* 1 when some child waits for chunks (the loop polls briefly then). */
+int pf_w_peers_busy(const s_worker *w);
 
 /* ---- photons.c: the photon job ---- */
 

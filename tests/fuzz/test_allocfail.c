@@ -35,6 +35,7 @@
 #include "photon/kdtree.h"
 #include "photon/mapfile.h"
 #include "photon/photonmap.h"
+#include "proto/hashtree.h"
 #include "proto/messages.h"
 #include "proto/sceneblob.h"
 #include "render/frame.h"
@@ -504,6 +505,13 @@ int main(void)
         case PF_MSG_PHOTONS:
             m.u.photons = (pf_msg_photons_t){ .batch = 1, .total = 2, .first = 0, .n = 2, .photons = photons };
             break;
+        case PF_MSG_BLOB_PLAN: {
+            static const uint64_t leaves[2] = { 11, 22 };
+            m.u.plan = (pf_msg_blob_plan_t){ .hash = 5, .size = PF_PROTO_CHUNK_SIZE + 9, .n = 2, .leaves = leaves };
+            m.u.plan.root = pf_chunk_root(5, m.u.plan.size, leaves, 2);
+            snprintf(m.u.plan.source, sizeof m.u.plan.source, "tcp://127.0.0.1:4000");
+            break;
+        }
         default: break;
         }
         pf_buf_t b = { 0 };

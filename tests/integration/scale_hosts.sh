@@ -12,7 +12,9 @@
 #
 # For each worker count W it starts W fresh workers (empty blob caches, one
 # per namespace, --exit-on-bye) and a coordinator (--min-workers W, --verify 0,
-# --threads = the machine's cores) rendering SCENE with the given options, and
+# --threads = the machine's cores, --fanout 0: the check validates the
+# model's coordinator-serves-all term; tests/integration/test_fanout.sh
+# measures fan-out) rendering SCENE with the given options, and
 # writes the coordinator's log to OUTDIR/wW.err and the workers' to
 # OUTDIR/wW-k.err; it prints one line per run, "run W=W rc=RC wall=SECONDS".
 # Exits 77 (skipped) with a SKIP line where namespaces, veths, a bridge or
@@ -81,7 +83,7 @@ for w in $COUNTS; do
     done
     t0=$(date +%s.%N)
     ip netns exec "$NS_C" timeout 600 "$PF" render "$SCENE" -o "$OUT/w$w.png" "$@" --threads "$cores" \
-        --bind "$EP" --workers 0 --min-workers "$w" --verify 0 --max-wait 120 -v \
+        --bind "$EP" --workers 0 --min-workers "$w" --verify 0 --max-wait 120 --fanout 0 -v \
         >"$OUT/w$w.out" 2>"$OUT/w$w.err"
     rc=$?
     t1=$(date +%s.%N)

@@ -19,6 +19,7 @@
 #include "base/wire.h"
 #include "photon/mapfile.h"
 #include "photon/photon.h"
+#include "proto/hashtree.h"
 #include "proto/messages.h"
 
 #include "check.h"
@@ -61,6 +62,7 @@ static float s_pixels[3 * 2 * 3];
 static uint8_t s_chunk_data[100];
 
 static pf_msg_photon_t s_photons[3];
+static uint64_t s_leaves[3];
 
 static void s_sample(int type, pf_msg_t *m)
 {
@@ -72,6 +74,7 @@ static void s_sample(int type, pf_msg_t *m)
         m->u.hello.fp = pf_frame_fingerprint();
         m->u.hello.threads = 8;
         snprintf(m->u.hello.name, sizeof m->u.hello.name, "render-07:4242");
+        m->u.hello.peer_port = 40123;
         break;
     case PF_MSG_WELCOME:
         m->u.welcome.worker_id = 7;
@@ -167,6 +170,19 @@ static void s_sample(int type, pf_msg_t *m)
                                               0xffffffffu - i };
         m->u.photons = (pf_msg_photons_t){ 5, 900, 30, 2, 800, 3, NULL, s_photons };
         break;
+    case PF_MSG_BLOB_PLAN: {
+        pf_msg_blob_plan_t *p = &m->u.plan;
+        for (int i = 0; i < 3; i++)
+            s_leaves[i] = 0x0f0e0d0c0b0a0908ULL * (uint64_t)(i + 1);
+        p->hash = 0x5555aaaa5555aaaaULL;
+        p->size = 2 * PF_PROTO_CHUNK_SIZE + 77; /* three chunks */
+        p->source_uid = 4;
+        snprintf(p->source, sizeof p->source, "tcp://10.0.0.7:40123");
+        p->n = 3;
+        p->leaves = s_leaves;
+        p->root = pf_chunk_root(p->hash, p->size, s_leaves, 3);
+        break;
+    }
     }
 }
 
@@ -190,6 +206,8 @@ static const char *s_diff(const pf_msg_t *a, const pf_msg_t *b)
             return "threads";
         if (strcmp(x->name, y->name))
             return "name";
+        if (x->peer_port != y->peer_port)
+            return "peer_port";
         return NULL;
     }
     case PF_MSG_WELCOME:
@@ -287,6 +305,16 @@ static const char *s_diff(const pf_msg_t *a, const pf_msg_t *b)
         }
         return NULL;
     }
+    case PF_MSG_BLOB_PLAN: {
+        const pf_msg_blob_plan_t *x = &a->u.plan, *y = &b->u.plan;
+        if (x->hash != y->hash || x->size != y->size || x->source_uid != y->source_uid || x->root != y->root ||
+            x->n != y->n || strcmp(x->source, y->source))
+            return "plan header";
+        for (uint32_t k = 0; k < x->n; k++)
+            if (pf_msg_plan_leaf(y, k) != x->leaves[k])
+                return "plan leaf";
+        return NULL;
+    }
     }
     return "unknown type";
 }
@@ -294,6 +322,16 @@ static const char *s_diff(const pf_msg_t *a, const pf_msg_t *b)
 /* Re-encodes a decoded message (RESULT pixels through pf_msg_result_pixels). */
 static int s_reencode(const pf_msg_t *m, pf_buf_t *out)
 {
+    if (m->type == PF_MSG_BLOB_PLAN) {
+        pf_msg_t c = *m;
+        uint64_t *l = malloc((m->u.plan.n + 1) * sizeof *l);
+        for (uint32_t k = 0; k < m->u.plan.n; k++)
+            l[k] = pf_msg_plan_leaf(&m->u.plan, k);
+        c.u.plan.leaves = l;
+        int rc = pf_msg_encode(&c, out);
+        free(l);
+        return rc;
+    }
     if (m->type == PF_MSG_PHOTONS) {
         pf_msg_t c = *m;
         pf_msg_photon_t *q = malloc((m->u.photons.n + 1) * sizeof *q);
@@ -597,7 +635,10 @@ static void s_corrupt_headers(void)
         /* RESULT's pixels are the rest of the frame: one more byte is a pixel
          * count that does not fit the tile. */
         s_expect(c, b.len + 1, PF_EPARSE,
-                 t == PF_MSG_RESULT ? "bytes of pixels" : t == PF_MSG_PHOTONS ? "bytes of photons" : "trailing",
+                 t == PF_MSG_RESULT    ? "bytes of pixels"
+                 : t == PF_MSG_PHOTONS   ? "bytes of photons"
+                 : t == PF_MSG_BLOB_PLAN ? "bytes of chunk hashes"
+                                         : "trailing",
                  "trailing byte");
         free(c);
         pf_buf_free(&b);
