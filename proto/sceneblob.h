@@ -16,9 +16,9 @@
  * the distant and the infinite light (same record); 7: materials gained
  * thickness (the coat's) and kd_tex, meshes uv and alpha_tex, the scene its
  * textures, the settings the pixel filter (filter_box, filter_tent); 8:
- * lights gained map, and the environment maps follow them. Older blobs are
- * refused. */
-#define PF_SCENEBLOB_VERSION 8
+ * lights gained map, and the environment maps follow them; 9: the settings
+ * path_max_depth. Older blobs are refused. */
+#define PF_SCENEBLOB_VERSION 9
 
 /* Serializes a finalized scene into out (reset first). 0 or PF_ENOMEM. */
 int pf_sceneblob_write(const pf_scene_t *scene, pf_buf_t *out);
