@@ -42,7 +42,10 @@
  *               terms of a sphere over a ground.
  *   depth       the furnace (albedo 0.7) under a path-length limit D (pbrt's
  *               maxdepth): Le (1 + a + ... + a^D) within 2 %, for D = 0
- *               (emitted only), 1, 2, 3, 5 and no limit.
+ *               (emitted only), 1, 2, 3, 5 and no limit; a mirror sphere
+ *               in it (the mirror an event, caustic and deeper gathers)
+ *               against the recursion in stress_depth.c, for D = 1, 2, 3, 5
+ *               and no limit.
  *
  * Every render is checked for NaN, Inf and negative channels, both by the
  * job's own count and by a scan here. Seeds are fixed, so each measured value
