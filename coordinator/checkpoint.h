@@ -25,7 +25,8 @@
 #include "image/image.h"
 #include "scene/scene.h"
 
-#define PF_CKPT_VERSION 1
+/* 2: the settings group gained path_max_depth. */
+#define PF_CKPT_VERSION 2
 
 typedef struct pf_ckpt_tile {
     uint32_t x0, y0, w, h;

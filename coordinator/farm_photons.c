@@ -67,7 +67,7 @@ int pf_fm_photons_spread(pf_fm_photons_t *p, pf_photon_maps_t *maps)
     if (rc == PF_OK)
         rc = pf_photon_tracer_new(p->scene, fr->accel, fr->lights, s, 0, &p->tracer);
     if (rc == PF_OK) {
-        p->phq = pf_phq_new(p->tracer, s->photon_max_depth);
+        p->phq = pf_phq_new(p->tracer, pf_photon_depth(s));
         rc = p->phq ? PF_OK : PF_ENOMEM;
         if (p->phq)
             pf_phq_checks(p->phq, p->check_secret, p->check_one_in);

@@ -57,6 +57,8 @@ static void s_usage(FILE *f)
             "      --caustic-k N        photons per caustic estimate (80)\n"
             "      --caustic-radius R   max caustic search radius in world units (0: 1%% of the scene)\n"
             "      --max-depth N        mirror/glass recursion depth (16)\n"
+            "      --path-depth N       most scattering events of a light path, pbrt's maxdepth\n"
+            "                           (0: no limit, the default; -1: emitted light only)\n"
             "      --threads N          rendering threads (0: all cores)\n"
             "      --seed N             random seed (1); the image depends on nothing else\n"
             "      --exposure STOPS     PNG exposure in stops (0)\n"
@@ -218,7 +220,7 @@ static void s_default_output(const char *scene, char *out, size_t n)
 
 enum {
     OPT_HDR = 256, OPT_SIZE, OPT_SPP, OPT_PHOTONS, OPT_CPHOTONS, OPT_GATHER, OPT_GFILTER, OPT_LSAMPLES, OPT_GK, OPT_CK, OPT_CR,
-    OPT_DEPTH, OPT_THREADS, OPT_SEED, OPT_EXPOSURE, OPT_PFILTER, OPT_TERMS, OPT_WORKERS, OPT_BIND, OPT_MINW, OPT_CSECRET,
+    OPT_DEPTH, OPT_PDEPTH, OPT_THREADS, OPT_SEED, OPT_EXPOSURE, OPT_PFILTER, OPT_TERMS, OPT_WORKERS, OPT_BIND, OPT_MINW, OPT_CSECRET,
     OPT_CALLOW, OPT_TILE, OPT_HB, OPT_WATCHDOG, OPT_MAXWAIT, OPT_WEXE, OPT_TLIMIT, OPT_QUALITY, OPT_STRICT,
     OPT_LEASE, OPT_STRIKES, OPT_FANOUT, OPT_VERIFY, OPT_PASSES, OPT_CKPT, OPT_RESUME,
 };
@@ -265,6 +267,7 @@ static const struct option s_render_opts[] = {
     { "gather-filter", required_argument, 0, OPT_GFILTER },
     { "global-k", required_argument, 0, OPT_GK },    { "caustic-k", required_argument, 0, OPT_CK },
     { "caustic-radius", required_argument, 0, OPT_CR }, { "max-depth", required_argument, 0, OPT_DEPTH },
+    { "path-depth", required_argument, 0, OPT_PDEPTH },
     { "threads", required_argument, 0, OPT_THREADS }, { "seed", required_argument, 0, OPT_SEED },
     { "exposure", required_argument, 0, OPT_EXPOSURE }, { "terms", required_argument, 0, OPT_TERMS },
     { "pixel-filter", required_argument, 0, OPT_PFILTER },
@@ -286,10 +289,10 @@ static const struct option s_render_opts[] = {
 /* Command-line settings are applied over the scene's after it loads; has_x
  * says x was given. */
 typedef struct s_cli_settings {
-    int w, h, spp, gather, gfilter, ls, gk, ck, depth, threads;
+    int w, h, spp, gather, gfilter, ls, gk, ck, depth, pdepth, threads;
     uint64_t photons, cphotons, seed;
     float cr, exposure, fbox, ftent;
-    int has_filter;
+    int has_filter, has_pdepth;
     int has_w, has_spp, has_gather, has_gfilter, has_ls, has_gk, has_ck, has_depth, has_threads, has_photons, has_cphotons,
         has_seed, has_cr, has_exposure;
 } s_cli_settings;
@@ -360,6 +363,7 @@ static int s_parse_render_args(int argc, char **argv, s_render_args *a)
         case OPT_CK: bad = s_parse_int(optarg, 1, 1024, &o->ck); o->has_ck = 1; break;
         case OPT_CR: bad = s_parse_float(optarg, &o->cr) || o->cr < 0; o->has_cr = 1; break;
         case OPT_DEPTH: bad = s_parse_int(optarg, 0, 1000, &o->depth); o->has_depth = 1; break;
+        case OPT_PDEPTH: bad = s_parse_int(optarg, -1, 1000, &o->pdepth); o->has_pdepth = 1; break;
         case OPT_THREADS: bad = s_parse_int(optarg, 0, 4096, &o->threads); o->has_threads = 1; break;
         case OPT_SEED: bad = s_parse_u64(optarg, &o->seed); o->has_seed = 1; break;
         case OPT_EXPOSURE: bad = s_parse_float(optarg, &o->exposure); o->has_exposure = 1; break;
@@ -449,6 +453,7 @@ static pf_settings_t s_render_settings(const pf_scene_t *scene, const s_render_a
     if (o->has_ck) s.caustic_k = o->ck;
     if (o->has_cr) s.caustic_radius = o->cr;
     if (o->has_depth) s.max_depth = o->depth;
+    if (o->has_pdepth) s.path_max_depth = o->pdepth;
     if (o->has_threads) s.threads = o->threads;
     if (o->has_seed) s.seed = o->seed;
     if (o->has_exposure) s.exposure = o->exposure;

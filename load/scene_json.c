@@ -137,12 +137,13 @@ static int s_render(s_ctx_t *c, const cJSON *r)
         { "light_samples", offsetof(pf_settings_t, light_samples), 1, 1 << 16 },
         { "max_depth", offsetof(pf_settings_t, max_depth), 0, 1024 },
         { "photon_max_depth", offsetof(pf_settings_t, photon_max_depth), 1, 100000 },
+        { "path_max_depth", offsetof(pf_settings_t, path_max_depth), -1, 100000 },
         { "global_k", offsetof(pf_settings_t, global_k), 1, 1 << 16 },
         { "caustic_k", offsetof(pf_settings_t, caustic_k), 1, 1 << 16 },
         { "irradiance_stride", offsetof(pf_settings_t, irradiance_stride), 1, 1 << 20 },
     };
     static const char *const keys[] = { "width", "height", "spp", "photons", "caustic_photons", "gather",
-                                        "gather_filter", "light_samples", "max_depth", "photon_max_depth", "global_k",
+                                        "gather_filter", "light_samples", "max_depth", "photon_max_depth", "path_max_depth", "global_k",
                                         "caustic_k", "caustic_radius", "global_radius", "irradiance_stride",
                                         "seed", "exposure", "pixel_filter", NULL };
     const char *what = "render";

@@ -28,6 +28,12 @@
 int pf_irradiance_precompute(const pf_kdtree_t *global, int stride, int k, float max_r2, float shrink2,
                              const pf_accel_t *accel, int threads, pf_kdtree_t **out)
 {
+    return pf_irradiance_precompute_limited(global, stride, k, max_r2, shrink2, 0, accel, threads, out);
+}
+
+int pf_irradiance_precompute_limited(const pf_kdtree_t *global, int stride, int k, float max_r2, float shrink2,
+                                     unsigned bounce_limit, const pf_accel_t *accel, int threads, pf_kdtree_t **out)
+{
     if (stride < 1)
         stride = 1;
     if (k > PF_MAX_K)
@@ -43,6 +49,8 @@ int pf_irradiance_precompute(const pf_kdtree_t *global, int stride, int k, float
     {
         pf_accel_thread_init();
         pf_pm_scratch_t *scratch = malloc(sizeof *scratch);
+        if (scratch)
+            scratch->bounce_limit = bounce_limit;
         pf_pm_visible_scratch_t vis = { 0 };
         /* Points in tree order are near each other: the last estimate's
          * radius, widened by 1.5, bounds the next search (same results). */

@@ -20,4 +20,11 @@
 int pf_irradiance_precompute(const pf_kdtree_t *global, int stride, int k, float max_r2, float shrink2,
                              const pf_accel_t *accel, int threads, pf_kdtree_t **out);
 
+/* The same over only the photons bounce_limit counts (pf_pm_scratch_t's;
+ * 0: all, as pf_irradiance_precompute): under a path-length limit the
+ * final gather's points hold the irradiance of the photons a gather from
+ * the camera's first vertex may take (pf_gather_bounce_limit). */
+int pf_irradiance_precompute_limited(const pf_kdtree_t *global, int stride, int k, float max_r2, float shrink2,
+                                     unsigned bounce_limit, const pf_accel_t *accel, int threads, pf_kdtree_t **out);
+
 #endif

@@ -75,6 +75,7 @@ uint64_t pf_settings_hash(const pf_settings_t *s)
     n += s_put_u32(buf + n, (uint32_t)(int32_t)s->irradiance_stride);
     n += s_put_u64(buf + n, s->seed);
     n += s_put_u32(buf + n, (uint32_t)(int32_t)s->pass);
+    n += s_put_u32(buf + n, (uint32_t)(int32_t)s->path_max_depth); /* the precomputed irradiance's bounce limit */
     return pf_hash_bytes(PF_HASH_INIT, buf, n);
 }
 

@@ -29,8 +29,9 @@
 
 #define PF_MAPFILE_MAGIC 0x50414d46u /* "FMAP" */
 /* 2: the split axes moved from a byte array after the photons into the
- * photons' normal field. */
-#define PF_MAPFILE_VERSION 2
+ * photons' normal field. 3: a photon's dir holds 12+12 direction bits and
+ * its bounce count (photon.h). */
+#define PF_MAPFILE_VERSION 3
 
 /* Serializes maps into out (reset first). 0 or PF_ENOMEM. */
 int pf_mapfile_write(const pf_photon_maps_t *maps, uint64_t scene_hash, uint64_t settings_hash, pf_buf_t *out);

@@ -5,7 +5,10 @@
  * 32 bytes, no padding: the kd-tree's split axis rides in the normal's two
  * lowest code bits (bit 0 of each 16-bit half), which leaves the normal 15+15
  * bits, ample for the agreement tests it serves (worst-case angular error
- * about 1e-4 rad). */
+ * about 1e-4 rad). The direction is coded in 12+12 bits (worst-case error
+ * about 5e-4 rad; only the glossy estimate reads it) and its top 8 bits
+ * hold the photon's bounce count, so that a render with a path-length limit
+ * (pbrt's maxdepth) can leave out photons whose path is too long. */
 #ifndef PF_PHOTON_H
 #define PF_PHOTON_H
 
@@ -17,7 +20,8 @@
 typedef struct pf_photon {
     float pos[3];
     float power[3];   /* flux, W per channel (or irradiance, see above) */
-    uint32_t dir;     /* direction the photon travelled, octahedral 16+16 bits */
+    uint32_t dir;     /* direction the photon travelled, octahedral 12+12 bits (pf_photon_dir),
+                       * and its bounce count in bits 24..31 (pf_photon_bounce) */
     uint32_t normal;  /* surface normal on the side the photon arrived from (octahedral,
                        * bits 0 and 16 excluded) and the kd-tree split axis (bits 0 | 16 << 1) */
 } pf_photon_t;
@@ -67,6 +71,40 @@ static inline pf_vec3 pf_oct_decode_raw(uint32_t code)
 }
 
 static inline pf_vec3 pf_oct_decode(uint32_t code) { return pf_norm(pf_oct_decode_raw(code)); }
+
+/* The most bounces a photon's count holds: it saturates there. */
+#define PF_PHOTON_BOUNCE_MAX 255u
+
+/* A photon's dir field: unit vector v (the direction it travelled) as a
+ * 12+12 bit octahedral code, and bounce, the scattering events (specular
+ * ones included) the photon made before it landed here (0: straight from
+ * the light), saturated at PF_PHOTON_BOUNCE_MAX. */
+static inline uint32_t pf_photon_dir_code(pf_vec3 v, int bounce)
+{
+    uint32_t c = pf_oct_encode(v);
+    /* 16 to 12 bits by rounding: 65535 / 4095 = 16.0037. */
+    uint32_t ux = ((c & 0xffffu) * 4095u + 32767u) / 65535u, uy = ((c >> 16) * 4095u + 32767u) / 65535u;
+    uint32_t b = bounce < 0 ? 0u : (uint32_t)bounce > PF_PHOTON_BOUNCE_MAX ? PF_PHOTON_BOUNCE_MAX : (uint32_t)bounce;
+    return ux | (uy << 12) | (b << 24);
+}
+
+/* The direction the photon travelled (unit). */
+static inline pf_vec3 pf_photon_dir(const pf_photon_t *p)
+{
+    uint32_t ux = p->dir & 0xfffu, uy = (p->dir >> 12) & 0xfffu;
+    float x = (float)ux / 4095.0f * 2.0f - 1.0f, y = (float)uy / 4095.0f * 2.0f - 1.0f;
+    float z = 1.0f - fabsf(x) - fabsf(y);
+    if (z < 0.0f) {
+        float tx = (1.0f - fabsf(y)) * pf_oct_sign(x);
+        float ty = (1.0f - fabsf(x)) * pf_oct_sign(y);
+        x = tx;
+        y = ty;
+    }
+    return pf_norm(pf_v3(x, y, z));
+}
+
+/* The photon's bounce count (see pf_photon_dir_code). */
+static inline unsigned pf_photon_bounce(const pf_photon_t *p) { return p->dir >> 24; }
 
 /* The photon's surface normal (unit). */
 static inline pf_vec3 pf_photon_normal(const pf_photon_t *p)

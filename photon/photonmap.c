@@ -266,7 +266,7 @@ static pf_vec3 s_estimate(const pf_kdtree_t *map, const pf_pm_scratch_t *scratch
     double s[3] = { 0, 0, 0 };
     for (size_t i = 0; i < cnt; i++) {
         const pf_photon_t *p = &ph[scratch->found[i].index];
-        if (!pf_photon_normal_agrees(p, n, PF_NORMAL_AGREE))
+        if (!pf_photon_normal_agrees(p, n, PF_NORMAL_AGREE) || !pf_photon_counts(p, scratch->bounce_limit))
             continue;
         float d2 = scratch->found[i].d2;
         double w = 1.0;
@@ -329,9 +329,10 @@ pf_vec3 pf_pm_radiance(const pf_kdtree_t *map, const struct pf_material *m, pf_v
     double s[3] = { 0, 0, 0 };
     for (size_t i = 0; i < cnt; i++) {
         const pf_photon_t *p = &ph[scratch->found[i].index];
-        if (!pf_photon_normal_agrees(p, n, PF_NORMAL_AGREE) || (shrink2 < 1.0f && !(scratch->found[i].d2 < r2)))
+        if (!pf_photon_normal_agrees(p, n, PF_NORMAL_AGREE) || (shrink2 < 1.0f && !(scratch->found[i].d2 < r2)) ||
+            !pf_photon_counts(p, scratch->bounce_limit))
             continue;
-        pf_vec3 wi = pf_neg(pf_oct_decode(p->dir));
+        pf_vec3 wi = pf_neg(pf_photon_dir(p));
         pf_vec3 f = pf_brdf_eval(m, n, wi, wo);
         s[0] += f.x * p->power[0];
         s[1] += f.y * p->power[1];
@@ -431,12 +432,13 @@ static int s_seen(const pf_accel_t *accel, const s_near *near, pf_vec3 x, pf_vec
  * area, which no query gives, and would make the corner and the thin wall
  * disagree.
  *
- * The estimate over the seen photons at x into *e and *r2 (which hold the
+ * The estimate over the seen photons at x (those bounce_limit counts, as
+ * pf_pm_scratch_t's) into *e and *r2 (which hold the
  * plain estimate's squared radius on entry); returns how many photons were
  * found hidden, 0 leaving *e and *r2 as they were. */
 static size_t s_seen_estimate(const pf_kdtree_t *map, const pf_accel_t *accel, s_near near, pf_vec3 x, pf_vec3 n,
-                              size_t kk, float max_r2, float shrink2, pf_vec3 *e, float *r2,
-                              pf_pm_visible_scratch_t *vs)
+                              size_t kk, float max_r2, float shrink2, unsigned bounce_limit, pf_vec3 *e,
+                              float *r2, pf_pm_visible_scratch_t *vs)
 {
     const pf_photon_t *ph = pf_kdtree_photons(map);
     const float eps = pf_accel_eps(accel);
@@ -505,7 +507,8 @@ static size_t s_seen_estimate(const pf_kdtree_t *map, const pf_accel_t *accel, s
     for (size_t i = 0; i < sum_n; i++) {
         pf_knn_t f = s_knn_of_key(vs->visible[i]);
         const pf_photon_t *p = &ph[f.index];
-        if (!pf_photon_normal_agrees(p, n, PF_NORMAL_AGREE) || (shrink2 < 1.0f && !(f.d2 < rs2)))
+        if (!pf_photon_normal_agrees(p, n, PF_NORMAL_AGREE) || (shrink2 < 1.0f && !(f.d2 < rs2)) ||
+            !pf_photon_counts(p, bounce_limit))
             continue;
         s[0] += p->power[0];
         s[1] += p->power[1];
@@ -545,6 +548,6 @@ pf_vec3 pf_pm_irradiance_seen(const pf_kdtree_t *map, const pf_accel_t *accel, p
         i++;
     if (i == cnt)
         return e;
-    s_seen_estimate(map, accel, near, x, n, (size_t)k, max_r2, shrink2, &e, r2_out, vs);
+    s_seen_estimate(map, accel, near, x, n, (size_t)k, max_r2, shrink2, scratch->bounce_limit, &e, r2_out, vs);
     return e;
 }

@@ -42,7 +42,31 @@ void pf_photon_maps_free(pf_photon_maps_t *maps);
 typedef struct pf_pm_scratch {
     pf_knn_t found[PF_PM_FOUND];
     uint64_t keys[PF_PM_FOUND];
+    /* The path-length limit of the estimates made with this scratch
+     * (pbrt's maxdepth, settings.path_max_depth): 0, every photon counts;
+     * n > 0, only photons with fewer than n bounces (pf_photon_bounce).
+     * The disc stays the k nearest photons' of any count, so the estimate
+     * is that of the counted photons' flux over the same area (unbiased,
+     * as the full one, for a uniform density of each). Whoever allocates
+     * the scratch sets it. */
+    unsigned bounce_limit;
 } pf_pm_scratch_t;
+
+/* Whether photon p counts under bounce_limit (pf_pm_scratch_t). */
+static inline int pf_photon_counts(const pf_photon_t *p, unsigned bounce_limit)
+{
+    return bounce_limit == 0 || pf_photon_bounce(p) < bounce_limit;
+}
+
+/* The bounce_limit that lets photons make at most `allowed` bounces, under
+ * a path-length limit depth (0: none): 0 (all) without one or where allowed
+ * reaches PF_PHOTON_BOUNCE_MAX (the count saturates there). allowed >= 0. */
+static inline unsigned pf_pm_bounce_limit(int depth, int allowed)
+{
+    if (depth <= 0 || allowed >= (int)PF_PHOTON_BOUNCE_MAX)
+        return 0;
+    return (unsigned)allowed + 1u;
+}
 
 /* Irradiance (W/m^2) at x on the surface with unit normal n: the flux of the
  * k - 1 nearest photons whose normals agree, over the disc pi r^2, r the

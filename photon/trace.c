@@ -170,7 +170,7 @@ static int s_trace(const s_ctx *c, uint64_t seed, uint64_t index, uint64_t emitt
                 return 0;
             if (!caustic || (bounce > 0 && specular_only)) {
                 pf_photon_t ph = { { hit.p.x, hit.p.y, hit.p.z }, { power.x, power.y, power.z },
-                                   pf_oct_encode(ray.d), pf_oct_encode(nf) };
+                                   pf_photon_dir_code(ray.d, bounce), pf_oct_encode(nf) };
                 if (s_push(buf, &ph))
                     return PF_ENOMEM;
                 buf->indirect += !specular_only;
@@ -357,8 +357,9 @@ int pf_photon_build(const pf_scene_t *scene, const pf_accel_t *accel, const pf_s
         rc = maps->irradiance ? PF_OK : PF_ENOMEM;
     } else {
         size_t stride = pf_irradiance_points_stride(gn, settings);
-        rc = pf_irradiance_precompute(maps->global, (int)stride, settings->global_k, maps->global_r2,
-                                      pf_pass_shrink2(settings->pass), accel, threads, &maps->irradiance);
+        rc = pf_irradiance_precompute_limited(maps->global, (int)stride, settings->global_k, maps->global_r2,
+                                              pf_pass_shrink2(settings->pass), pf_gather_bounce_limit(settings), accel,
+                                              threads, &maps->irradiance);
     }
     stats->irradiance_s = pf_now() - t2;
     if (rc != PF_OK) {
@@ -375,7 +376,7 @@ int pf_photon_pass(const pf_scene_t *scene, const pf_accel_t *accel, const pf_li
     memset(maps, 0, sizeof *maps);
     memset(stats, 0, sizeof *stats);
     int threads = settings->threads > 0 ? settings->threads : omp_get_num_procs();
-    s_ctx c = { scene, accel, lights, settings->photon_max_depth, NULL, 0 };
+    s_ctx c = { scene, accel, lights, pf_photon_depth(settings), NULL, 0 };
     pf_target_t *targets = NULL;
     uint64_t caustic_photons = 0;
     int nt = s_setup(scene, settings, &targets, &caustic_photons, 0);
@@ -432,7 +433,7 @@ int pf_photon_tracer_new(const pf_scene_t *scene, const pf_accel_t *accel, const
         free(t);
         return nt;
     }
-    t->c = (s_ctx){ scene, accel, lights, settings->photon_max_depth, t->targets, (size_t)nt };
+    t->c = (s_ctx){ scene, accel, lights, pf_photon_depth(settings), t->targets, (size_t)nt };
     t->seed = settings->seed;
     t->plan.global_emitted = settings->photons;
     t->plan.caustic_emitted = caustic;

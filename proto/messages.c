@@ -18,7 +18,7 @@
  *   REFUSE      str reason
  *   HEARTBEAT   u64 progress, u32 tiles_held
  *   JOB         u64 scene_hash, scene_size, maps_hash, maps_size,
- *               settings (84 bytes, below), u32 terms, u32 tile_size
+ *               settings (100 bytes, below), u32 terms, u32 tile_size
  *   BLOB_REQ    u64 hash, u64 offset, u32 credit
  *   BLOB_CHUNK  u64 hash, u64 total, u64 offset, u32 len, len bytes
  *   READY       u32 credit
@@ -161,7 +161,7 @@ int pf_fingerprint_check(const pf_fingerprint_t *worker, const pf_fingerprint_t 
 
 /* ---- the settings field group ----
  *
- * On the wire, in this order (the declaration order of pf_settings_t), 96
+ * On the wire, in this order (the declaration order of pf_settings_t), 100
  * bytes; int fields travel as two's-complement i32:
  *   i32 width, i32 height, i32 spp,
  *   u64 photons, u64 caustic_photons,
@@ -169,7 +169,7 @@ int pf_fingerprint_check(const pf_fingerprint_t *worker, const pf_fingerprint_t 
  *   i32 global_k, i32 caustic_k,
  *   f32 caustic_radius, f32 global_radius,
  *   i32 irradiance_stride, i32 threads,
- *   u64 seed, f32 exposure, i32 pass, f32 filter_box, f32 filter_tent
+ *   u64 seed, f32 exposure, i32 pass, f32 filter_box, f32 filter_tent, i32 path_max_depth
  */
 
 static uint32_t s_u32_from_int(int v) { return (uint32_t)(int32_t)v; }
@@ -207,6 +207,7 @@ int pf_wr_settings(pf_buf_t *b, const pf_settings_t *s)
     W(pf_wr_u32(b, s_u32_from_int(s->pass)));
     W(pf_wr_f32(b, s->filter_box));
     W(pf_wr_f32(b, s->filter_tent));
+    W(pf_wr_u32(b, s_u32_from_int(s->path_max_depth)));
     return rc;
 }
 
@@ -311,6 +312,7 @@ static void s_dec_settings(s_dec_t *d, pf_settings_t *s)
     s->pass = s_i32(d, "settings.pass");
     s->filter_box = s_f32(d, "settings.filter_box");
     s->filter_tent = s_f32(d, "settings.filter_tent");
+    s->path_max_depth = s_i32(d, "settings.path_max_depth");
 }
 
 void pf_rd_settings(pf_rd_t *r, pf_settings_t *s)
@@ -348,6 +350,7 @@ int pf_settings_check(const pf_settings_t *s, char *why, size_t why_len)
         s_out_of_range(why, why_len, "settings.light_samples", s->light_samples, 1, INT32_MAX) ||
         s_out_of_range(why, why_len, "settings.max_depth", s->max_depth, 0, S_MAX_DEPTH) ||
         s_out_of_range(why, why_len, "settings.photon_max_depth", s->photon_max_depth, 0, S_MAX_DEPTH) ||
+        s_out_of_range(why, why_len, "settings.path_max_depth", s->path_max_depth, -1, S_MAX_DEPTH) ||
         s_out_of_range(why, why_len, "settings.global_k", s->global_k, 1, S_MAX_K) ||
         s_out_of_range(why, why_len, "settings.caustic_k", s->caustic_k, 1, S_MAX_K) ||
         s_bad_radius(why, why_len, "settings.caustic_radius", s->caustic_radius) ||

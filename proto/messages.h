@@ -51,7 +51,8 @@
 
 #define PF_PROTO_MAGIC 0x4d524650u /* "PFRM" read as little-endian bytes 'P','F','R','M' */
 #define PF_PROTO_VERSION 6 /* 3: settings carry the progressive pass; 4: and the pixel filter; 5: PHOTON_REQ, PHOTONS;
-                              6: HELLO carries peer_port, BLOB_PLAN (fan-out) */
+                              6: HELLO carries peer_port, BLOB_PLAN (fan-out),
+                              settings.path_max_depth */
 #define PF_PROTO_HEADER_SIZE 16
 #define PF_PROTO_MAX_STRING PF_WIRE_MAX_STRING
 #define PF_PROTO_CHUNK_SIZE (1u << 20)            /* blob chunk payload */

@@ -5,7 +5,7 @@
  * u16 length and that many bytes without a NUL, vec3 is three f32):
  *   u32 magic PF_SCENEBLOB_MAGIC, u16 version PF_SCENEBLOB_VERSION, u16 0
  *   str path                      (where the scene came from; for messages only)
- *   settings                      (the field group of messages.c, 84 bytes)
+ *   settings                      (the field group of messages.c, 100 bytes)
  *   u8 has_camera, vec3 pos, vec3 look_at, vec3 up, f32 vfov_deg,
  *     u8 fov_shorter, u8 left_handed, f32 lens_radius, f32 focal_distance
  *   u32 nmats,    nmats x   { str name, u8 type, vec3 kd, vec3 ks, f32 ns, vec3 kt, f32 ior, vec3 le,
@@ -63,7 +63,7 @@
 #define S_LIGHT (1 + 11 * 4 + 4)
 #define S_MIN_ENVMAP (2 + 1 + 4 + 4 + 18 * 4)
 /* The settings field group (its layout is in messages.c). */
-#define S_SETTINGS 96
+#define S_SETTINGS 100
 
 /* Writers run while rc (in the caller's scope) is still 0. */
 #define W(call)          \

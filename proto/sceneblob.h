@@ -16,7 +16,9 @@
  * the distant and the infinite light (same record); 7: materials gained
  * thickness (the coat's) and kd_tex, meshes uv and alpha_tex, the scene its
  * textures, the settings the pixel filter (filter_box, filter_tent); 8:
- * lights gained map, and the environment maps follow them. Older blobs are
+ * lights gained map, and the environment maps follow them; 9: the settings
+ * path_max_depth and the materials' mix, diffuse transmission, alpha,
+ * normal and bump map and textured roughness fields. Older blobs are
  * refused. */
 #define PF_SCENEBLOB_VERSION 9
 

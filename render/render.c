@@ -103,6 +103,7 @@
 #include "material/ggx.h"
 #include "photon/irrtex.h"
 #include "render/direct_impl.h"
+#include "render/depth.h"
 #include "render/filter_impl.h"
 #include "render/pixel_impl.h"
 
@@ -141,6 +142,8 @@ typedef struct s_state {
      * sky_ng rays about sky_ns (0: the sky seen counts nothing). */
     int sky_ng;
     pf_vec3 sky_ns;
+    unsigned caustic_limit; /* the bounce limit the reusable caustic estimate had */
+    int events; /* the scattering events of the camera path at the vertex estimating now (render/depth.h) */
     pf_pm_scratch_t scratch;
 } s_state;
 
@@ -148,10 +151,12 @@ typedef struct s_state {
  * estimate when it was made close enough. */
 static pf_vec3 s_caustic(s_state *st, pf_vec3 p, pf_vec3 nf)
 {
-    if (st->caustic_valid && pf_dot(nf, st->caustic_n) > 0.999f &&
+    const pf_render_ctx_t *c = st->ctx;
+    unsigned limit = pf_depth_photon_limit(&c->settings, st->events);
+    if (st->caustic_valid && pf_dot(nf, st->caustic_n) > 0.999f && st->caustic_limit == limit &&
         pf_dot(pf_sub(p, st->caustic_p), pf_sub(p, st->caustic_p)) < st->caustic_reach2)
         return st->caustic_e;
-    const pf_render_ctx_t *c = st->ctx;
+    st->scratch.bounce_limit = st->caustic_limit = limit;
     float r2 = 0.0f;
     pf_vec3 e = pf_pm_estimate(c->maps->caustic, p, nf, c->settings.caustic_k, c->maps->caustic_r2,
                                st->caustic_hint, c->shrink2, 1, &st->scratch, &r2);
@@ -216,14 +221,23 @@ static void s_gather_trace(s_state *st, pf_ray_t ray, s_gather_end *end)
         pf_vec3 nf = pf_face_forward(h.ng, wo);
         pf_vec3 ns = pf_dot(h.ng, nf) > 0.0f ? h.ns : pf_neg(h.ns);
         if (m->type == PF_MAT_DIFFUSE || pf_mat_coated(m) || pf_mat_difftrans(m)) {
-            if (!pf_mat_nonspecular(m))
+            int events = st->events + 1 + depth; /* the gather ray's end's photons make the rest */
+            if (!pf_mat_nonspecular(m) || !pf_depth_allows(&c->settings, events))
                 return;
+            st->scratch.bounce_limit = pf_depth_photon_limit(&c->settings, events);
             if (pf_mat_difftrans(m)) { /* both sides' irradiance, by the direct lookup */
                 const pf_photon_maps_t *pm = c->maps;
                 pf_vec3 ef = pf_irradiance_lookup(pm->irradiance, pm->irradiance_r2, c->accel, h.p, nf);
                 pf_vec3 eb = pf_irradiance_lookup(pm->irradiance, pm->irradiance_r2, c->accel, h.p, pf_neg(nf));
                 pf_vec3 l = pf_scale(pf_add(pf_mul(m->kd, ef), pf_mul(m->kt, eb)), PF_INV_PI);
                 end->value = pf_mul(thr, l);
+                return;
+            }
+            if (!pf_depth_precomputed(&c->settings, events)) {
+                pf_vec3 kd = pf_mat_coated(m) ? pf_coated_kd(m, pf_dot(wo, ns), 1) : m->kd;
+                pf_vec3 e = pf_pm_irradiance(c->maps->global, h.p, nf, c->settings.global_k, c->maps->global_r2,
+                                             &st->scratch, NULL);
+                end->value = pf_mul(thr, pf_scale(pf_mul(kd, e), PF_INV_PI));
                 return;
             }
             if (pf_mat_glossy(m)) {
@@ -492,6 +506,9 @@ static pf_vec3 s_radiance(s_state *st, pf_ray_t ray, int depth, pf_vec3 thr, int
     pf_vec3 nf = pf_face_forward(h.ng, wo);
     pf_vec3 ns = pf_dot(h.ng, nf) > 0.0f ? h.ns : pf_neg(h.ns);
     pf_vec3 L = count_le ? s_emitted(st, &h, m, ray.d, count_le) : pf_v3s(0.0f);
+    if (!pf_depth_allows(&c->settings, depth + 1))
+        return L; /* this vertex would scatter one event too many */
+    st->events = depth + 1;
     if (pf_mat_rough(m))
         return pf_add(L, s_rough(st, &h, m, nf, ns, wo, depth, thr));
 
@@ -502,6 +519,7 @@ static pf_vec3 s_radiance(s_state *st, pf_ray_t ray, int depth, pf_vec3 thr, int
         if (c->terms & PF_TERM_PHOTONMAP) {
             /* The global map's own estimate (the debugging view), not the
              * precomputed points, which a scene without indirect light lacks. */
+            st->scratch.bounce_limit = pf_depth_photon_limit(&c->settings, depth + 1);
             pf_vec3 e = pf_pm_irradiance(c->maps->global, h.p, nf, c->settings.global_k, c->maps->global_r2,
                                          &st->scratch, NULL);
             if (pf_mat_difftrans(m))
@@ -512,7 +530,8 @@ static pf_vec3 s_radiance(s_state *st, pf_ray_t ray, int depth, pf_vec3 thr, int
          * below dim specular branches */
         int filtered = primary && st->filtering;
         int ng = (int)ceilf((float)c->settings.gather * fminf(1.0f, pf_maxc(thr)));
-        ng = !(c->terms & PF_TERM_INDIRECT) || pf_is_black(kd) ? 0 : filtered ? c->settings.gather : ng;
+        ng = !(c->terms & PF_TERM_INDIRECT) || pf_is_black(kd) || !pf_depth_allows(&c->settings, depth + 2) ? 0
+             : filtered ? c->settings.gather : ng;
         int sky = pf_direct_sky_mis(c, m, ng);
         if (c->terms & PF_TERM_DIRECT)
             L = pf_add(L, pf_direct_light(c, &st->rng, &h, m, nf, ns, wo, depth < c->settings.max_depth, sky));
@@ -580,6 +599,8 @@ pf_vec3 pf_render_gather_rays(const pf_render_ctx_t *ctx, const pf_ray_t *rays, 
     st.filtering = 0;
     st.rec = NULL;
     st.sky_ng = 0;
+    st.events = 1;
+    st.scratch.bounce_limit = 0;
     s_defer d;
     d.n = 0;
     pf_vec3 sum = pf_v3s(0.0f);
@@ -622,13 +643,14 @@ static pf_ray_t s_camera_sample(s_state *st, const pf_pattern_t *pt, int px, int
 /* The end of a camera ray's primary path as s_radiance follows it (mirrors,
  * glass refracting near the eye or reflecting totally) when that is a
  * diffuse surface the final gather serves: the material, with the hit in *h,
- * its camera-facing normals in *nf and *ns, and the path's length in *length;
- * NULL otherwise. */
+ * its camera-facing normals in *nf and *ns, the path's length in *length and
+ * its scattering events there in *events (render/depth.h); NULL otherwise. */
 static const pf_material_t *s_primary_hit(const pf_render_ctx_t *c, pf_ray_t ray, pf_hit_t *h, pf_vec3 *nf,
-                                          pf_vec3 *ns, float *length)
+                                          pf_vec3 *ns, float *length, int *events)
 {
     *length = 0.0f;
     for (int depth = 0; pf_accel_intersect(c->accel, &ray, INFINITY, h); depth++) {
+        *events = depth + 1;
         pf_material_t mt = pf_material_at(c->scene, h);
         const pf_material_t *m = &mt;
         pf_shade_hit(c->scene, m, h, pf_neg(ray.d));
@@ -676,7 +698,8 @@ static float s_footprint(const pf_render_ctx_t *c, const pf_film_t *film, pf_vec
         pf_hit_t h;
         pf_vec3 n2, ns2;
         float len2;
-        if (!s_primary_hit(c, ray, &h, &n2, &ns2, &len2) || pf_dot(n2, nf) < PF_FILTER_COS)
+        int events;
+        if (!s_primary_hit(c, ray, &h, &n2, &ns2, &len2, &events) || pf_dot(n2, nf) < PF_FILTER_COS)
             continue;
         foot = fmaxf(foot, pf_len(pf_sub(h.p, p)));
     }
@@ -716,7 +739,7 @@ static void s_record_pixel(s_state *st, const pf_pattern_t *pt, int px, int py, 
         pf_hit_t h;
         pf_vec3 nf, ns;
         float length;
-        const pf_material_t *m = s_primary_hit(c, ray, &h, &nf, &ns, &length);
+        const pf_material_t *m = s_primary_hit(c, ray, &h, &nf, &ns, &length, &st->events);
         if (!m)
             continue;
         int k = pf_filter_rec_find(rec, h.p, nf);
@@ -756,6 +779,8 @@ static s_state *s_state_new(const pf_render_ctx_t *ctx, int filtering)
     st->rec = NULL;
     st->caustic_valid = 0;
     st->caustic_hint = INFINITY;
+    st->events = 1;
+    st->scratch.bounce_limit = 0;
     return st;
 }
 

@@ -46,6 +46,7 @@ pf_settings_t pf_settings_default(void)
         .exposure = 0.0f,
         .filter_box = 1.0f,
         .filter_tent = 0.0f,
+        .path_max_depth = 0,
     };
 }
 

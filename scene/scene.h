@@ -211,7 +211,34 @@ typedef struct pf_settings {
      * box-downsampled by 2). Camera samples are drawn from the filter, each
      * with weight one for its pixel (filter importance sampling). */
     float filter_box, filter_tent;
+    /* The most scattering events (specular ones included) of a light path
+     * from the light to the camera, pbrt's Integrator "maxdepth": 0, no
+     * limit; -1, none (only emitters seen directly; pbrt's maxdepth 0).
+     * Photons carry their bounce counts and the estimates take only those
+     * whose path fits (render/render.c, photon/photonmap.h). */
+    int path_max_depth;
 } pf_settings_t;
+
+/* The bounces a photon is traced for: photon_max_depth, and no more than
+ * path_max_depth (a photon stored after D bounces has a path of D + 1
+ * events at the least, which no estimate takes). */
+static inline int pf_photon_depth(const pf_settings_t *s)
+{
+    return s->path_max_depth > 0 && s->path_max_depth < s->photon_max_depth ? s->path_max_depth
+                                                                            : s->photon_max_depth;
+}
+
+/* The most photon bounces a final gather from the camera's first vertex
+ * may read (the precomputed irradiance holds those): pf_pm_bounce_limit's
+ * limit for depth limit d = settings.path_max_depth; 0 (all) without one. */
+static inline unsigned pf_gather_bounce_limit(const pf_settings_t *s)
+{
+    /* camera vertex 1 and the gather's vertex 2 are two of the events */
+    if (s->path_max_depth <= 0)
+        return 0;
+    int allowed = s->path_max_depth - 2;
+    return allowed >= 255 ? 0u : allowed < 0 ? 1u : (unsigned)allowed + 1u;
+}
 
 /* The widest box and tent of the pixel filter, in pixels. */
 #define PF_MAX_FILTER_WIDTH 4.0f

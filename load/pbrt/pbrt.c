@@ -426,10 +426,11 @@ static int s_film(pf_pbrt_t *c, pf_pbrt_loc_t loc)
     return rc;
 }
 
-/* Integrator: only maxdepth is read. pbrt's maxdepth bounds every bounce of
- * a path; here it bounds the camera side's specular recursion (max_depth)
- * and a photon's bounces (photon_max_depth). The step that brings MIS and
- * glossy BSDFs will count bounces as pbrt does. */
+/* Integrator: only maxdepth is read. pbrt's maxdepth bounds the scattering
+ * events of a whole light path (path_max_depth; 0 there means no limit, so
+ * pbrt's 0, emitted light only, becomes -1); it also bounds the camera
+ * side's specular recursion (max_depth) and a photon's bounces
+ * (photon_max_depth), which no longer path could use. */
 static int s_integrator(pf_pbrt_t *c, pf_pbrt_loc_t loc)
 {
     char *type = NULL;
@@ -443,6 +444,7 @@ static int s_integrator(pf_pbrt_t *c, pf_pbrt_loc_t loc)
     if (rc == PF_OK) {
         c->scene->settings.max_depth = depth;
         c->scene->settings.photon_max_depth = depth;
+        c->scene->settings.path_max_depth = depth > 0 ? depth : -1;
         rc = pf_pbrt_check_unused(c, &ps, "Integrator");
     }
     free(type);
@@ -824,7 +826,7 @@ int pf_pbrt_load(pf_scene_t *scene, const char *path, const pf_load_opts_t *opts
     /* pbrt's defaults where the file says nothing. */
     scene->settings.width = 1280;
     scene->settings.height = 720;
-    scene->settings.max_depth = scene->settings.photon_max_depth = 5;
+    scene->settings.max_depth = scene->settings.photon_max_depth = scene->settings.path_max_depth = 5;
     const char *slash = strrchr(path, '/');
     size_t dlen = slash ? (size_t)(slash - path) + 1 : 0;
     int rc = PF_OK;

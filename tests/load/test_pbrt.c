@@ -671,15 +671,26 @@ static void test_camera(void)
         CHECK(c->vfov_deg == 30.0f && c->fov_shorter == 1 && c->left_handed == 1);
         CHECK(s_near(c->lens_radius, 0.1f) && s_near(c->focal_distance, 5.0f));
         CHECK(s->settings.width == 200 && s->settings.height == 100 && s->settings.max_depth == 7 &&
-              s->settings.photon_max_depth == 7);
+              s->settings.photon_max_depth == 7 && s->settings.path_max_depth == 7,
+              "maxdepth 7: max_depth %d photon_max_depth %d path_max_depth %d", s->settings.max_depth,
+              s->settings.photon_max_depth, s->settings.path_max_depth);
         CHECK(s_warned(&rep, "camera screen window") == 1 && rep.nwarnings == 1);
     }
     pf_scene_destroy(&s);
     /* A mirrored camera (Scale -1 1 1, as exporters write): right-handed. */
     s = s_parse("Scale -1 1 1\nLookAt 0 0 0  0 0 -1  0 1 0\nCamera \"perspective\"\nWorldBegin\n", 0, NULL, &err);
     CHECK(s && s->camera.left_handed == 0 && s_vnear(s->camera.look_at, 0, 0, -1) && s->camera.vfov_deg == 90.0f &&
-              s->settings.width == 1280 && s->settings.height == 720 && s->settings.max_depth == 5,
+              s->settings.width == 1280 && s->settings.height == 720 && s->settings.max_depth == 5 &&
+              s->settings.path_max_depth == 5,
           "%s", err.msg);
+    pf_scene_destroy(&s);
+    /* pbrt's path-length limit: maxdepth 5 unless given (also without an
+     * Integrator, above), 0 (emitted light only) as -1, since 0 is no limit. */
+    s = s_parse("Integrator \"path\"\nWorldBegin\n", 0, NULL, &err);
+    CHECK(s && s->settings.path_max_depth == 5, "Integrator without maxdepth: %s", err.msg);
+    pf_scene_destroy(&s);
+    s = s_parse("Integrator \"path\" \"integer maxdepth\" 0\nWorldBegin\n", 0, NULL, &err);
+    CHECK(s && s->settings.path_max_depth == -1, "maxdepth 0: %s", err.msg);
     pf_scene_destroy(&s);
     s_fails("Scale 0 1 1\nCamera \"perspective\"\n", "scene.pbrt:2:1: Camera: the current transform cannot be inverted");
     s_fails("Camera \"perspective\" \"float fov\" 180\n", "scene.pbrt:1:22: Camera: fov must be in (0, 180)");
@@ -709,7 +720,8 @@ static void test_bitterli(void)
         CHECK(s->nmeshes == 9 && ntris == 4 * 12 + 2 + 2 + 3 * 3968 && emit == 3 && s->nspheres == 0 &&
                   s->nlights == 0 && s->nmats == 8,
               "%zu meshes, %zu triangles, %zu emitting, %zu materials", s->nmeshes, ntris, emit, s->nmats);
-        CHECK(s->settings.width == 1280 && s->settings.height == 720 && s->settings.max_depth == 3);
+        CHECK(s->settings.width == 1280 && s->settings.height == 720 && s->settings.max_depth == 3 &&
+              s->settings.path_max_depth == 3);
         /* Its Transform mirrors (det -1, as exporters from right-handed
          * renderers write): camera +x is forward x up, a right-handed view. */
         CHECK(s->camera.left_handed == 0 && s_near(s->camera.vfov_deg, 20.114292f) && s->camera.fov_shorter == 1);

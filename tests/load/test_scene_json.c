@@ -71,9 +71,9 @@ static void test_prims(void)
     CHECK(s->caustic_photons == 12345 && s->seed == 42, "caustic_photons %llu seed %llu",
           (unsigned long long)s->caustic_photons, (unsigned long long)s->seed);
     CHECK(s->gather == 7 && s->gather_filter == 3 && s->light_samples == 3 && s->max_depth == 5 &&
-              s->photon_max_depth == 9,
-          "gather %d filter %d light_samples %d depths %d %d", s->gather, s->gather_filter, s->light_samples,
-          s->max_depth, s->photon_max_depth);
+              s->photon_max_depth == 9 && s->path_max_depth == 4,
+          "gather %d filter %d light_samples %d depths %d %d %d", s->gather, s->gather_filter, s->light_samples,
+          s->max_depth, s->photon_max_depth, s->path_max_depth);
     CHECK(s->global_k == 50 && s->caustic_k == 40 && s->irradiance_stride == 2, "k %d %d stride %d", s->global_k,
           s->caustic_k, s->irradiance_stride);
     CHECK(s->caustic_radius == 0.25f && s->global_radius == 0.5f && s->exposure == -1.5f, "radii %g %g exposure %g",

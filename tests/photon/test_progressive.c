@@ -154,7 +154,7 @@ static void s_converges(pf_pm_scratch_t *scratch, int cone)
 
 int main(void)
 {
-    pf_pm_scratch_t *scratch = malloc(sizeof *scratch);
+    pf_pm_scratch_t *scratch = calloc(1, sizeof *scratch);
     PF_CHECK(scratch != NULL);
     s_schedule();
     s_pass0_same(scratch);

@@ -76,6 +76,7 @@ static pf_scene_t *s_tiny_scene(void)
     s->settings.width = 320;
     s->settings.seed = 0x123456789abcdefULL;
     s->settings.exposure = 0.5f;
+    s->settings.path_max_depth = 4;
     pf_material_t m = pf_material_default("emitter");
     m.le = pf_v3(5.0f, 4.0f, 3.0f);
     pf_scene_add_material(s, &m);
@@ -187,7 +188,8 @@ static int s_settings_equal(const pf_settings_t *a, const pf_settings_t *b)
            a->photon_max_depth == b->photon_max_depth && a->global_k == b->global_k && a->caustic_k == b->caustic_k &&
            memcmp(&a->caustic_radius, &b->caustic_radius, 4) == 0 &&
            memcmp(&a->global_radius, &b->global_radius, 4) == 0 && a->irradiance_stride == b->irradiance_stride &&
-           a->threads == b->threads && a->seed == b->seed && memcmp(&a->exposure, &b->exposure, 4) == 0;
+           a->threads == b->threads && a->seed == b->seed && memcmp(&a->exposure, &b->exposure, 4) == 0 &&
+           a->path_max_depth == b->path_max_depth;
 }
 
 /* The first part in which two scenes differ, or NULL. Structs without
@@ -305,7 +307,7 @@ static s_offsets_t s_walk(const uint8_t *d)
     o.reserved = at;
     at += 2;
     at += 2 + s_str_len_at(d + at); /* path */
-    at += 96;                       /* settings */
+    at += 100;                      /* settings */
     o.has_camera = at;
     at += 1 + 40;
     o.fov_shorter = at;
@@ -416,7 +418,7 @@ static void test_scene_blob(void)
         { 4, 2, 5, 0, "format version 5, this build reads 9", "version 5 (before the distant light)" },
         { 4, 2, 6, 0, "format version 6, this build reads 9", "version 6 (before the coat and the textures)" },
         { 4, 2, 7, 0, "format version 7, this build reads 9", "version 7 (before the environment maps)" },
-        { 4, 2, 8, 0, "format version 8, this build reads 9", "version 8 (before mix, diffuse transmission, normal and bump maps)" },
+        { 4, 2, 8, 0, "format version 8, this build reads 9", "version 8 (before mix, diffuse transmission, maps and the path-length limit)" },
         { o.reserved, 2, 1, 0, "reserved", "reserved field" },
         { o.has_camera, 1, 2, 0, "has_camera", "has_camera 2" },
         { o.has_camera + 1, -4, 0, NAN, "camera pos is not a finite number", "camera NaN" },
@@ -652,7 +654,8 @@ static void s_map_patches(const pf_buf_t *b, uint64_t sh, uint64_t th)
     const size_t g = 52, c = 84, ir = 116;
     const s_mpatch_t patches[] = {
         { 0, 1, 'X', 0, 0, PF_EPARSE, "bad magic", "magic" },
-        { 4, 2, 3, 0, 0, PF_EMISMATCH, "format version 3", "version" },
+        { 4, 2, 2, 0, 0, PF_EMISMATCH, "format version 2", "version 2 (before the bounce counts)" },
+        { 4, 2, 4, 0, 0, PF_EMISMATCH, "format version 4", "version" },
         { 6, 2, 40, 0, 0, PF_EMISMATCH, "photon record size 40", "record size" },
         { 8, 1, 0, 0, 0, PF_EMISMATCH, "scene hash", "scene hash" },
         { 16, 1, 0, 0, 0, PF_EMISMATCH, "settings hash", "settings hash" },
@@ -808,9 +811,9 @@ static void test_settings_hash(void)
     pf_settings_t s = base;
     CHECK(pf_settings_hash(&s) == h0, "deterministic");
     /* Every photon-relevant field changes the hash. */
-    const char *names[9] = { "photons", "caustic_photons", "photon_max_depth", "global_k", "caustic_k",
-                             "caustic_radius", "global_radius", "irradiance_stride", "seed" };
-    for (int f = 0; f < 9; f++) {
+    const char *names[10] = { "photons", "caustic_photons", "photon_max_depth", "global_k", "caustic_k",
+                              "caustic_radius", "global_radius", "irradiance_stride", "seed", "path_max_depth" };
+    for (int f = 0; f < 10; f++) {
         s = base;
         switch (f) {
         case 0: s.photons++; break;
@@ -822,6 +825,7 @@ static void test_settings_hash(void)
         case 6: s.global_radius = 0.01f; break;
         case 7: s.irradiance_stride++; break;
         case 8: s.seed ^= 1ull << 63; break;
+        case 9: s.path_max_depth = 3; break;
         }
         CHECK(pf_settings_hash(&s) != h0, "%s must change the settings hash", names[f]);
     }

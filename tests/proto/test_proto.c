@@ -435,15 +435,17 @@ static void test_settings_group(void)
     pf_settings_t s = pf_settings_default();
     s.seed = 0x8000000000000001ULL;
     s.threads = 3;
+    s.path_max_depth = -1;
     pf_buf_t b = { 0 };
-    CHECK(pf_wr_settings(&b, &s) == 0 && b.len == 96, "settings group is 96 bytes (got %zu)", b.len);
+    CHECK(pf_wr_settings(&b, &s) == 0 && b.len == 100, "settings group is 100 bytes (got %zu)", b.len);
     pf_rd_t r = pf_rd_make(b.data, b.len);
     pf_settings_t t;
     memset(&t, 0xee, sizeof t);
     pf_rd_settings(&r, &t);
     CHECK(pf_rd_ok(&r) && r.left == 0, "settings read back");
     CHECK(t.width == s.width && t.photons == s.photons && t.seed == s.seed && t.threads == s.threads &&
-              t.exposure == s.exposure && t.irradiance_stride == s.irradiance_stride,
+              t.exposure == s.exposure && t.irradiance_stride == s.irradiance_stride &&
+              t.path_max_depth == -1,
           "settings equal");
     r = pf_rd_make(b.data, 79);
     pf_rd_settings(&r, &t);
@@ -681,7 +683,8 @@ static void s_corrupt_handshake(void)
 static void s_corrupt_job(void)
 {
     /* JOB: four u64 then the settings at 48 (layout in messages.c), pass at
-     * 132, the pixel filter at 136 and 140, terms at 144, tile_size at 148. */
+     * 132, the pixel filter at 136 and 140, path_max_depth at 144, terms at
+     * 148, tile_size at 152. */
     const s_patch_t job[] = {
         { 48, 4, 0, "settings.width 0", 0 },
         { 48, 4, 65537, "settings.width", 0 },
@@ -710,10 +713,12 @@ static void s_corrupt_job(void)
         { 128, 4, 0xff800000u, "settings.exposure", 0 },
         { 132, 4, 0xffffffffu, "settings.pass -1", 0 },
         { 132, 4, PF_MAX_PASSES, "settings.pass", 0 },
-        { 144, 4, 0, "terms 0", 0 },
-        { 144, 4, 32, "terms 32", 0 },
-        { 148, 4, 0, "tile_size 0", 0 },
-        { 148, 4, 257, "tile_size", 0 },
+        { 144, 4, 0xfffffffeu, "settings.path_max_depth -2 is out of range", 0 },
+        { 144, 4, 100001, "settings.path_max_depth", 0 },
+        { 148, 4, 0, "terms 0", 0 },
+        { 148, 4, 32, "terms 32", 0 },
+        { 152, 4, 0, "tile_size 0", 0 },
+        { 152, 4, 257, "tile_size", 0 },
     };
     s_patch_test(PF_MSG_JOB, job, NPATCH(job));
 }

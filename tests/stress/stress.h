@@ -33,6 +33,7 @@ void stress_test_kdtree(void);
 void stress_test_distant(void); /* stress_lights.c */
 void stress_test_sky(void);     /* stress_lights.c */
 void stress_test_envmap(void);  /* stress_envmap.c */
+void stress_test_depth(void);   /* stress_depth.c */
 
 /* Scene building: materials, watertight boxes, spheres, point lights, the
  * camera, and settings for a small, fast render. */

@@ -40,6 +40,12 @@
  *   envmap      a constant-valued image sky renders as the constant sky:
  *               the furnace for both mappings, and the direct and indirect
  *               terms of a sphere over a ground.
+ *   depth       the furnace (albedo 0.7) under a path-length limit D (pbrt's
+ *               maxdepth): Le (1 + a + ... + a^D) within 2 %, for D = 0
+ *               (emitted only), 1, 2, 3, 5 and no limit; a mirror sphere
+ *               in it (the mirror an event, caustic and deeper gathers)
+ *               against the recursion in stress_depth.c, for D = 1, 2, 3, 5
+ *               and no limit.
  *
  * Every render is checked for NaN, Inf and negative channels, both by the
  * job's own count and by a scan here. Seeds are fixed, so each measured value
@@ -47,7 +53,7 @@
  * docs/stress.md) and below what the regressions they guard against give.
  * With PF_STRESS_DUMP=dir every checked image is also written to dir.
  *
- * Usage: test_stress [furnace|plane|invariance|geometry|degenerate|kdtree|distant|sky|envmap|all],
+ * Usage: test_stress [furnace|plane|invariance|geometry|degenerate|kdtree|distant|sky|envmap|depth|all],
  * from the repository root (scene and data paths are relative to it).
  *
  * This file holds main and the check counts; stress.h says where the
@@ -86,6 +92,8 @@ int main(int argc, char **argv)
         stress_test_sky();
     if (all || !strcmp(what, "envmap"))
         stress_test_envmap();
+    if (all || !strcmp(what, "depth"))
+        stress_test_depth();
     printf("stress %s: %.1f s\n", what, pf_now() - t0);
     return pf_test_finish();
 }
