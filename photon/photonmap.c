@@ -21,12 +21,16 @@ void pf_photon_maps_free(pf_photon_maps_t *maps)
     pf_kdtree_destroy(&maps->global);
     pf_kdtree_destroy(&maps->caustic);
     pf_kdtree_destroy(&maps->irradiance);
+    pf_kdtree_destroy(&maps->irradiance_deep);
     memset(maps, 0, sizeof *maps);
 }
 
 int pf_photon_maps_index(pf_photon_maps_t *maps)
 {
-    return maps->irradiance ? pf_kdtree_index_nearest(maps->irradiance) : PF_OK;
+    int rc = maps->irradiance ? pf_kdtree_index_nearest(maps->irradiance) : PF_OK;
+    if (rc == PF_OK && maps->irradiance_deep)
+        rc = pf_kdtree_index_nearest(maps->irradiance_deep);
+    return rc;
 }
 
 pf_vec3 pf_irradiance_lookup(const pf_kdtree_t *irr, float irr_r2, const pf_accel_t *accel, pf_vec3 p, pf_vec3 nf)

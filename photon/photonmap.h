@@ -15,6 +15,12 @@ typedef struct pf_photon_maps {
     pf_kdtree_t *global;      /* photons on non-specular surfaces, any path; flux already divided by emitted count */
     pf_kdtree_t *caustic;     /* photons of L S+ D paths */
     pf_kdtree_t *irradiance;  /* irradiance (in power[]) at a subset of global photons */
+    /* Under a path-length limit of 3 or more: the same points' irradiance
+     * from the photons a gather from the camera's second vertex may take
+     * (one bounce fewer), so those gathers read points too instead of
+     * estimating from the global map. Not in the blob: whoever renders
+     * derives it (pf_photon_deep_irradiance); NULL otherwise. */
+    pf_kdtree_t *irradiance_deep;
     uint64_t global_emitted, caustic_emitted;
     float global_r2;          /* max squared search radius of global estimates */
     float caustic_r2;         /* max squared search radius of caustic estimates */

@@ -308,6 +308,28 @@ static int s_setup(const pf_scene_t *scene, const pf_settings_t *settings, pf_ta
     return nt;
 }
 
+unsigned pf_deep_bounce_limit(const pf_settings_t *settings)
+{
+    int d = settings->path_max_depth;
+    return d >= 3 ? pf_pm_bounce_limit(d, d - 3) : 0;
+}
+
+int pf_photon_deep_irradiance(pf_photon_maps_t *maps, const pf_accel_t *accel, const pf_settings_t *settings,
+                              int threads)
+{
+    pf_kdtree_destroy(&maps->irradiance_deep);
+    if (settings->path_max_depth < 3 || !maps->global || !maps->irradiance || pf_kdtree_size(maps->irradiance) == 0)
+        return PF_OK;
+    if (threads <= 0)
+        threads = omp_get_num_procs();
+    size_t stride = pf_irradiance_points_stride(pf_kdtree_size(maps->global), settings);
+    unsigned limit = pf_deep_bounce_limit(settings);
+    /* limit 0 here: D - 3 >= the bounce cap, every photon counts, as in irradiance */
+    return pf_irradiance_precompute_limited(maps->global, (int)stride, settings->global_k, maps->global_r2,
+                                            pf_pass_shrink2(settings->pass), limit, accel, threads,
+                                            &maps->irradiance_deep);
+}
+
 int pf_photon_build(const pf_scene_t *scene, const pf_accel_t *accel, const pf_settings_t *settings,
                     uint64_t caustic_emitted, pf_photon_t **gp_p, size_t gn, pf_photon_t **cp_p, size_t cn,
                     pf_photon_maps_t *maps, pf_photon_stats_t *stats)
@@ -360,6 +382,8 @@ int pf_photon_build(const pf_scene_t *scene, const pf_accel_t *accel, const pf_s
         rc = pf_irradiance_precompute_limited(maps->global, (int)stride, settings->global_k, maps->global_r2,
                                               pf_pass_shrink2(settings->pass), pf_gather_bounce_limit(settings), accel,
                                               threads, &maps->irradiance);
+        if (rc == PF_OK)
+            rc = pf_photon_deep_irradiance(maps, accel, settings, threads);
     }
     stats->irradiance_s = pf_now() - t2;
     if (rc != PF_OK) {

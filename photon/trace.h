@@ -37,6 +37,18 @@ typedef struct pf_photon_stats {
  * by that widening (see photon_trace.c). At least 1. */
 size_t pf_irradiance_points_stride(size_t stored, const pf_settings_t *settings);
 
+/* The bounce limit (pf_pm_scratch_t) of maps->irradiance_deep: photons a
+ * gather from the camera's second vertex may read (D - 3 bounces); 0 when
+ * there is no limit or it leaves those gathers nothing (D < 3: none made). */
+unsigned pf_deep_bounce_limit(const pf_settings_t *settings);
+
+/* Derives maps->irradiance_deep (photonmap.h) from the global map, at the
+ * same points as maps->irradiance, when settings->path_max_depth >= 3 and
+ * there are points; deterministic for any thread count (0: all cores), so
+ * the coordinator's and every worker's agree. 0 or PF_ENOMEM. */
+int pf_photon_deep_irradiance(pf_photon_maps_t *maps, const pf_accel_t *accel, const pf_settings_t *settings,
+                              int threads);
+
 /* Runs the photon pass with settings->threads OpenMP threads. Photon i draws
  * from its own counter-based stream and photons are stored in index order,
  * so the maps are identical for any thread count. 0 or a status. */

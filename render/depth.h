@@ -37,4 +37,12 @@ static inline int pf_depth_precomputed(const pf_settings_t *s, int events)
     return s->path_max_depth == 0 || events == 2 || pf_depth_photon_limit(s, events) == pf_gather_bounce_limit(s);
 }
 
+/* Whether the deep irradiance points (photonmap.h irradiance_deep) hold the
+ * photons an estimate at the events-th vertex may take (a gather from the
+ * camera's second vertex) where the first points do not. */
+static inline int pf_depth_deep(const pf_settings_t *s, const pf_photon_maps_t *maps, int events)
+{
+    return s->path_max_depth >= 3 && maps->irradiance_deep && events == 3;
+}
+
 #endif

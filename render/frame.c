@@ -8,6 +8,7 @@
 
 #include "base/log.h"
 #include "photon/mapfile.h"
+#include "photon/trace.h"
 #include "proto/sceneblob.h"
 
 int pf_frame_open(pf_frame_t *f, const pf_scene_t *scene, pf_error_t *err)
@@ -58,6 +59,11 @@ int pf_frame_from_blobs(pf_frame_t *f, const uint8_t *scene_blob, size_t scene_l
     if (rc != PF_OK) {
         pf_frame_close(f);
         return pf_error_set(err, rc, NULL, 0, "photon-map blob %016" PRIx64 " rejected: %s", maps_hash, why.msg);
+    }
+    /* the deep gathers' points, which the blob leaves to the renderer */
+    if (pf_photon_deep_irradiance(&f->maps, f->accel, settings, settings->threads) != PF_OK) {
+        pf_frame_close(f);
+        return pf_error_set(err, PF_ENOMEM, NULL, 0, "out of memory for the deep gathers' irradiance points");
     }
     pf_frame_ready(f);
     return PF_OK;

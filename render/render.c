@@ -233,10 +233,13 @@ static void s_gather_trace(s_state *st, pf_ray_t ray, s_gather_end *end)
                 end->value = pf_mul(thr, l);
                 return;
             }
-            if (!pf_depth_precomputed(&c->settings, events)) {
+            if (!pf_depth_precomputed(&c->settings, events)) { /* the deep points, else the map itself */
                 pf_vec3 kd = pf_mat_coated(m) ? pf_coated_kd(m, pf_dot(wo, ns), 1) : m->kd;
-                pf_vec3 e = pf_pm_irradiance(c->maps->global, h.p, nf, c->settings.global_k, c->maps->global_r2,
-                                             &st->scratch, NULL);
+                const pf_photon_maps_t *pm = c->maps;
+                pf_vec3 e = pf_depth_deep(&c->settings, pm, events)
+                                ? pf_irradiance_lookup(pm->irradiance_deep, pm->irradiance_r2, c->accel, h.p, nf)
+                                : pf_pm_irradiance(pm->global, h.p, nf, c->settings.global_k, pm->global_r2,
+                                                   &st->scratch, NULL);
                 end->value = pf_mul(thr, pf_scale(pf_mul(kd, e), PF_INV_PI));
                 return;
             }
