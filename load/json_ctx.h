@@ -92,6 +92,10 @@ int pf_json_int(s_ctx_t *c, const cJSON *v, const char *key, const char *what, i
 int pf_json_u64(s_ctx_t *c, const cJSON *v, const char *key, const char *what, uint64_t *out);
 /* A non-empty string (owned by the tree). */
 int pf_json_string(s_ctx_t *c, const cJSON *v, const char *key, const char *what, const char **out);
+/* The path of a file named in the scene (at v): as written when absolute,
+ * else beside the JSON file, into path (size bytes). 0, or an error at v
+ * when it does not fit. */
+int pf_json_file_path(s_ctx_t *c, const cJSON *v, const char *file, char *path, size_t size);
 /* An array of exactly n numbers, each fitting a float. */
 int pf_json_floats(s_ctx_t *c, const cJSON *v, const char *key, const char *what, int n, float *out);
 int pf_json_vec3(s_ctx_t *c, const cJSON *v, const char *key, const char *what, pf_vec3 *out);

@@ -54,10 +54,8 @@ int pf_json_envlight(s_ctx_t *c, const cJSON *o, pf_light_t *l)
     if (rc)
         return rc;
     char path[2048];
-    int n = (file[0] == '/' || c->dir[0] == '\0') ? snprintf(path, sizeof path, "%s", file)
-                                                    : snprintf(path, sizeof path, "%s/%s", c->dir, file);
-    if (n < 0 || (size_t)n >= sizeof path)
-        return S_FAIL_AT(c, vi, "the path '%.64s...' is too long", file);
+    if ((rc = pf_json_file_path(c, vi, file, path, sizeof path)))
+        return rc;
     pf_envmap_t map;
     size_t clamped = 0;
     pf_error_t err = { { 0 } };

@@ -24,10 +24,8 @@ static int s_image(s_ctx_t *c, const cJSON *v, const char *key, float scale, uin
     if (rc)
         return rc;
     char path[2048];
-    int n = (file[0] == '/' || c->dir[0] == '\0') ? snprintf(path, sizeof path, "%s", file)
-                                                    : snprintf(path, sizeof path, "%s/%s", c->dir, file);
-    if (n < 0 || (size_t)n >= sizeof path)
-        return S_FAIL_AT(c, v, "the path '%.64s...' is too long", file);
+    if ((rc = pf_json_file_path(c, v, file, path, sizeof path)))
+        return rc;
     pf_texture_t t = pf_texture_constant(key, pf_v3s(0.0f));
     t.scale = scale;
     pf_error_t err = { { 0 } };

@@ -363,6 +363,15 @@ int pf_json_string(s_ctx_t *c, const cJSON *v, const char *key, const char *what
     return PF_OK;
 }
 
+int pf_json_file_path(s_ctx_t *c, const cJSON *v, const char *file, char *path, size_t size)
+{
+    int n = (file[0] == '/' || c->dir[0] == '\0') ? snprintf(path, size, "%s", file)
+                                                    : snprintf(path, size, "%s/%s", c->dir, file);
+    if (n < 0 || (size_t)n >= size)
+        return S_FAIL_AT(c, v, "the path '%.64s...' is too long", file);
+    return PF_OK;
+}
+
 /* An array of exactly n numbers (each fitting a float). */
 int pf_json_floats(s_ctx_t *c, const cJSON *v, const char *key, const char *what, int n, float *out)
 {

@@ -136,6 +136,18 @@ static int s_scalar(s_ctx_t *c, const char *p, const char *kw, float lo, float *
     return s_expect_end(c, p, kw);
 }
 
+/* Reads a scalar in [0, 1] (d, Tr, Pr, Pm): above 1 is clamped to 1, with a
+ * warning. */
+static int s_unit_scalar(s_ctx_t *c, const char *p, const char *kw, float *out)
+{
+    int rc = s_scalar(c, p, kw, 0.0f, out);
+    if (rc == PF_OK && *out > 1.0f) {
+        pf_warn("%s:%d: %s %g above 1 clamped to 1", c->path, c->line, kw, *out);
+        *out = 1.0f;
+    }
+    return rc;
+}
+
 /* Reads "r [g b]": finite and >= 0; with clamp, channels above 1 become 1. */
 static int s_color(s_ctx_t *c, const char *p, const char *kw, int clamp, pf_vec3 *out)
 {
@@ -466,26 +478,18 @@ static int s_statement(void *arg, const char *kw, int kwlen, const char *p)
     }
     if (S_KW("Pr") || S_KW("Pm")) {
         float v;
-        int rc = s_scalar(c, p, name, 0.0f, &v);
+        int rc = s_unit_scalar(c, p, name, &v);
         if (rc)
             return rc;
-        if (v > 1.0f) {
-            pf_warn("%s:%d: %s %g above 1 clamped to 1", c->path, c->line, name, v);
-            v = 1.0f;
-        }
         *(S_KW("Pr") ? &cur->pr : &cur->pm) = v;
         *(S_KW("Pr") ? &cur->has_pr : &cur->has_pm) = 1;
         return PF_OK;
     }
     if (S_KW("d") || S_KW("Tr")) {
         float v;
-        int rc = s_scalar(c, p, name, 0.0f, &v);
+        int rc = s_unit_scalar(c, p, name, &v);
         if (rc)
             return rc;
-        if (v > 1.0f) {
-            pf_warn("%s:%d: %s %g above 1 clamped to 1", c->path, c->line, name, v);
-            v = 1.0f;
-        }
         cur->has_d = 1;
         cur->d = S_KW("d") ? v : 1.0f - v;
         return PF_OK;
