@@ -219,15 +219,8 @@ int pf_pbrt_float_param(pf_pbrt_t *c, pf_pbrt_params_t *ps, const char *name, do
     pf_pbrt_param_t *p = pf_pbrt_param(ps, name);
     if (!p || p->type != PF_PBRT_P_TEXTURE)
         return pf_pbrt_get_float_tex(c, ps, name, def, what, value, NULL);
-    if (p->nstr != 1)
-        return pf_pbrt_error(c, PF_EPARSE, p->loc, "texture parameter '%s' takes one texture name", name);
-    pf_pbrt_tex_t *t;
-    int rc = pf_pbrt_find_texture(c, p->str[0], 1, p->loc, &t);
-    if (rc == PF_OK)
-        rc = s_make(c, t, ref);
-    if (rc == PF_OK && *ref)
-        p->used = 1;
-    else if (rc == PF_OK)
+    int rc = pf_pbrt_float_texture(c, p, ref);
+    if (rc == PF_OK && !*ref) /* a constant: its value */
         rc = pf_pbrt_get_float_tex(c, ps, name, def, what, value, NULL);
     return rc;
 }
