@@ -187,7 +187,8 @@ typedef struct s_worker {
     /* photons.c: the photon job (desc: the scene blob and the pass's
      * settings; maps unused), the batch ranges waiting for its scene blob;
      * the compute thread's own frame of that scene (accel and lights: built
-     * once per scene hash, touched only by the compute thread). */
+     * once per scene hash, touched only by the compute thread; render frames
+     * share it, compute.c). */
     s_job *pjob;
     pf_msg_photon_req_t ph_wait[4];
     int nph_wait;
@@ -282,6 +283,10 @@ void pf_w_photons_drop(s_worker *w, const char *why);
 void pf_w_photons_sent(s_worker *w, s_work *it);
 /* Compute thread: traces a PHOTONS item's batches. */
 void pf_w_compute_photons(s_worker *w, s_work *it);
+/* Compute thread: w->ph_frame made the frame of it's job's scene (accel,
+ * lights; no maps) from it->scene_blob, built only when the scene differs
+ * from the last one built. 0, or -1 with it->error set. */
+int pf_w_scene_frame(s_worker *w, s_work *it);
 
 /* ---- compute.c: the compute thread, its queue and the work items ---- */
 
