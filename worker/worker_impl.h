@@ -55,7 +55,7 @@ typedef struct s_blob {
 
 /* peers.c: a worker this one serves blob chunks to (a routing identity on
  * the peer ROUTER) and the range it asked: chunks [next, hi) of blob hash. */
-#define S_MAX_CHILDREN 8
+#define S_MAX_CHILDREN 16 /* transfers to children: (child, blob) pairs */
 typedef struct s_child {
     int used;
     uint8_t id[256];
@@ -72,7 +72,8 @@ typedef struct s_strike {
     int n;
 } s_strike;
 
-/* peers.c: the coordinator's latest BLOB_PLAN. */
+/* peers.c: a BLOB_PLAN of the coordinator's (one per blob: the JOB's scene
+ * and maps come with a plan each, from the same source). */
 typedef struct s_plan {
     uint64_t hash, size;
     uint32_t n;
@@ -204,7 +205,7 @@ typedef struct s_worker {
 
     /* peers.c: fan-out. The ROUTER serving other workers and its port (0:
      * none), the children served, strikes; the DEALER to the current
-     * source, sources struck; the last plan. */
+     * source, sources struck; the latest plans (two blobs). */
     void *psrv;
     uint16_t peer_port;
     s_child children[S_MAX_CHILDREN];
@@ -216,7 +217,8 @@ typedef struct s_worker {
     char pfetch_ep[PF_PROTO_MAX_SOURCE];
     char bad_src[4][PF_PROTO_MAX_SOURCE];
     int nbad_src;
-    s_plan plan;
+    s_plan plans[2];
+    int plan_next; /* the slot the next plan of a new blob takes */
     pf_buf_t penc;
 
     int finished, exit_code;
