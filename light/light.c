@@ -52,7 +52,6 @@
 #include "light/envlight.h"
 #include "light/lightbvh.h"
 #include "light/spherelight.h"
-#include "light/targets.h"
 
 typedef enum { S_AREA, S_POINT, S_DISTANT, S_INFINITE, S_ENVMAP, S_SPHERE } s_kind;
 

@@ -111,6 +111,11 @@ typedef struct pf_target {
     float radius;
 } pf_target_t;
 
+/* The cone from p that holds target t: unit axis, cos of the half-angle and
+ * solid angle; a point inside the sphere sees the whole sphere of directions
+ * (cos -1, solid 4 pi). For pf_lights_emit_targeted (targets.c). */
+void pf_target_cone(pf_vec3 p, const pf_target_t *t, pf_vec3 *axis, float *cos_max, float *solid);
+
 /* Bounding spheres of the scene's mirror, glass and conductor geometry: one
  * per mesh (over its specular triangles) and one per specular sphere. *out is
  * malloc'd (NULL when there are none). Returns the count, or PF_ENOMEM. */

@@ -1,7 +1,7 @@
 /* targets.c: the specular targets caustic photons are aimed at (light.h's
  * pf_specular_targets) and the cone a target subtends from a point
- * (targets.h), apart from light.c to keep that file within bounds. */
-#include "light/targets.h"
+ * (light.h), apart from light.c to keep that file within bounds. */
+#include "light/light.h"
 
 #include <float.h>
 #include <stdlib.h>

@@ -20,11 +20,12 @@
  * cylinders) have the outward winding of pbrt's parametrization. A sphere
  * stays analytic (pf_sphere_t) when it is full, is not reversed and its
  * transform is a similarity (rotation, uniform scale, translation) outside
- * any object definition; an emissive one also when that transform keeps
- * handedness, since an analytic sphere emits outward only (pbrt flips a
- * sphere's normal under ReverseOrientation or a mirroring transform: those
- * are tessellated, their winding inward). Its Le is the area light's, with
- * "power" over pi 4 pi r^2 as s_place does over a mesh's area. */
+ * any object definition; an emissive one only when that transform also
+ * keeps handedness: an analytic sphere emits outward (light/spherelight.h),
+ * and pbrt's sphere flips its normal under ReverseOrientation and under a
+ * mirroring transform, so both stay tessellated as before. Its Le is the
+ * area light's, with "power" over pi 4 pi r^2 as s_place does over a mesh's
+ * area. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
