@@ -75,7 +75,8 @@ static int s_bounded(s_kind k) { return k == S_AREA || k == S_SPHERE || k == S_P
  * (3 tessellated spheres, 11904 triangles) at 320x180, 16 spp went from
  * relMSE 0.406 / 0.666 (seeds 1 / 2) to 0.463 / 0.697 with the BVH, though
  * its direct term alone improved (0.069 -> 0.048 at 160x90). This keeps the
- * Cornell boxes, furnaces and veach-mis as they were. */
+ * Cornell boxes, furnaces and veach-mis as they were (veach-mis's spheres,
+ * now three analytic sphere lights, are three groups: the power table). */
 #define S_MIN_GROUPS 8
 
 typedef struct s_entry {
