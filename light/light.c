@@ -338,7 +338,7 @@ static float s_mix_pmf(const pf_lights_t *self, size_t e, float p_bvh)
     if (k == S_DISTANT)
         return 0.0f; /* taken apart (pf_lights_distant) */
     float own = s_bounded(k) ? (1.0f - self->p_inf) * p_bvh
-                                            : self->p_inf * (float)((self->dcdf[e + 1] - self->dcdf[e]) / self->pu);
+                             : self->p_inf * (float)((self->dcdf[e + 1] - self->dcdf[e]) / self->pu);
     return S_DEFENSIVE * power + (1.0f - S_DEFENSIVE) * own;
 }
 
@@ -941,7 +941,8 @@ int pf_lights_emit_targeted(const pf_lights_t *self, const pf_scene_t *scene, co
     pf_vec3 axis;
     float cos_max, solid;
     pf_target_cone(p, &targets[ti], &axis, &cos_max, &solid);
-    pf_vec3 w = cos_max <= -1.0f ? pf_sample_sphere(u[4], u[5]) : pf_to_world(pf_sample_cone(u[4], u[5], cos_max), axis);
+    pf_vec3 w = cos_max <= -1.0f ? pf_sample_sphere(u[4], u[5])
+                                 : pf_to_world(pf_sample_cone(u[4], u[5], cos_max), axis);
     /* Mixture pdf over every target whose cone holds w. */
     double pdf = 0.0;
     for (size_t k = 0; k < ntargets; k++) {

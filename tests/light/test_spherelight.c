@@ -91,6 +91,13 @@ static uint32_t s_material(pf_scene_t *sc, pf_mat_type type, pf_vec3 kd, pf_vec3
     return (uint32_t)i;
 }
 
+/* A grey floor, 10 x 10 at y = 0, facing up. */
+static void s_floor(pf_scene_t *sc)
+{
+    uint32_t m = s_material(sc, PF_MAT_DIFFUSE, pf_v3s(0.5f), pf_v3s(0.0f));
+    pf_test_quad(sc, pf_v3(-5, 0, 5), pf_v3(10, 0, 0), pf_v3(0, 0, -10), m);
+}
+
 static void s_sphere(pf_scene_t *sc, pf_vec3 c, float r, uint32_t mat)
 {
     pf_sphere_t s = { .center = c, .radius = r, .mat = mat };
@@ -187,7 +194,7 @@ static void s_test_irradiance(void)
     pf_scene_t *sc = pf_scene_create(), *tess = pf_scene_create();
     s_sphere(sc, c, r, s_material(sc, PF_MAT_DIFFUSE, pf_v3s(0.0f), le));
     s_uv_sphere(tess, c, r, s_material(tess, PF_MAT_DIFFUSE, pf_v3s(0.0f), le));
-    pf_test_quad(sc, pf_v3(-5, 0, 5), pf_v3(10, 0, 0), pf_v3(0, 0, -10), s_material(sc, PF_MAT_DIFFUSE, pf_v3s(0.5f), pf_v3s(0.0f)));
+    s_floor(sc);
     s_finalize(sc);
     s_finalize(tess);
     pf_lights_t *lt = pf_lights_build(sc), *lt_tess = pf_lights_build(tess);
@@ -209,7 +216,8 @@ static void s_test_irradiance(void)
                "%.3g vs %.3g tessellated\n", k, st.mean, s_se(&st), tt.mean, s_se(&tt), want, s_var(&st), s_var(&tt));
         CHECK(off == 0, "point %d: %ld samples off the sphere's visible part", k, off);
         CHECK(fabs(st.mean - want) <= 5.0 * s_se(&st) && fabs(st.mean / want - 1.0) < 0.002,
-              "point %d: irradiance %.6f, expected pi Le (r/d)^2 cos = %.6f (5 se %.2g)", k, st.mean, want, 5.0 * s_se(&st));
+              "point %d: irradiance %.6f, expected pi Le (r/d)^2 cos = %.6f (5 se %.2g)", k, st.mean, want,
+              5.0 * s_se(&st));
         CHECK(s_var(&st) * 100.0 < s_var(&tt), "point %d: variance %.3g, not far below the tessellated sphere's %.3g",
               k, s_var(&st), s_var(&tt));
     }
@@ -222,8 +230,8 @@ static void s_test_irradiance(void)
         got += pf_lights_sample_direct(lt, sc, pf_add(c, pf_v3(0.2f, -0.1f, 0.3f)), u, &lc);
     }
     CHECK(got == 0, "%ld samples reach a point inside the sphere", got);
-    CHECK(pf_lights_pdf(lt, sc, pf_add(c, pf_v3(0.2f, 0.0f, 0.0f)), (uint32_t)sc->nmeshes, 0, pf_madd(c, pf_v3(1, 0, 0), r)) == 0.0f,
-          "a pdf for a point inside the sphere");
+    pf_vec3 inside = pf_add(c, pf_v3(0.2f, 0.0f, 0.0f)), on = pf_madd(c, pf_v3(1, 0, 0), r);
+    CHECK(pf_lights_pdf(lt, sc, inside, (uint32_t)sc->nmeshes, 0, on) == 0.0f, "a pdf for a point inside the sphere");
     pf_lights_destroy(&lt);
     pf_lights_destroy(&lt_tess);
     pf_scene_destroy(&sc);
@@ -264,10 +272,12 @@ static void s_check_pdf(const pf_scene_t *sc, const pf_lights_t *lt, uint32_t s,
         hc[t < 0.0 ? 0 : t >= 1.0 ? bins - 1 : (int)(t * bins)]++;
         hp[phi < 0.0 ? 0 : phi >= 1.0 ? bins - 1 : (int)(phi * bins)]++;
     }
-    CHECK(hits > 1000 && bad == 0, "%s: %ld of %ld samples on the sphere whose pf_lights_pdf_at differs", what, bad, hits);
+    CHECK(hits > 1000 && bad == 0, "%s: %ld of %ld samples on the sphere whose pf_lights_pdf_at differs", what, bad,
+          hits);
     CHECK(s_chi2(hc, bins, hits) < s_chi2_limit(bins - 1), "%s: 1 - cos not uniform in the cone (chi2 %.1f)", what,
           s_chi2(hc, bins, hits));
-    CHECK(s_chi2(hp, bins, hits) < s_chi2_limit(bins - 1), "%s: phi not uniform (chi2 %.1f)", what, s_chi2(hp, bins, hits));
+    CHECK(s_chi2(hp, bins, hits) < s_chi2_limit(bins - 1), "%s: phi not uniform (chi2 %.1f)", what,
+          s_chi2(hp, bins, hits));
     /* the pdf over the directions of a cone twice as wide (uniform in it):
      * sum pdf Omega / N over those that meet the sphere = the pick probability */
     double cos_w = 1.0 - 4.0 * om, omega = 2.0 * PI_D * (1.0 - cos_w);
@@ -278,8 +288,10 @@ static void s_check_pdf(const pf_scene_t *sc, const pf_lights_t *lt, uint32_t s,
         pf_vec3 w = pf_to_world(pf_sample_cone(u[0], u[1], (float)cos_w), axis);
         double b = pf_dot(w, pf_sub(sp->center, x)), disc = b * b - (d * d - (double)sp->radius * sp->radius);
         double v = 0.0;
-        if (disc >= 0.0) /* the near hit */
-            v = pf_lights_pdf_at(lt, sc, x, n, (uint32_t)sc->nmeshes, s, pf_madd(x, w, (float)(b - sqrt(disc)))) * omega;
+        if (disc >= 0.0) { /* the near hit */
+            pf_vec3 p = pf_madd(x, w, (float)(b - sqrt(disc)));
+            v = pf_lights_pdf_at(lt, sc, x, n, (uint32_t)sc->nmeshes, s, p) * omega;
+        }
         s_stat_add(&in, v);
     }
     double freq = (double)hits / count, se = sqrt(freq * (1.0 - freq) / count);
@@ -294,8 +306,9 @@ static void s_test_pdf(void)
     /* the power table: the sphere and a quad above it */
     pf_scene_t *sc = pf_scene_create();
     s_sphere(sc, pf_v3(0.3f, 2.0f, -0.2f), 0.4f, s_material(sc, PF_MAT_DIFFUSE, pf_v3s(0.0f), pf_v3(3, 2, 1)));
-    pf_test_quad(sc, pf_v3(-1, 3, -1), pf_v3(2, 0, 0), pf_v3(0, 0, 2), s_material(sc, PF_MAT_DIFFUSE, pf_v3s(0.0f), pf_v3s(1.0f)));
-    pf_test_quad(sc, pf_v3(-5, 0, 5), pf_v3(10, 0, 0), pf_v3(0, 0, -10), s_material(sc, PF_MAT_DIFFUSE, pf_v3s(0.5f), pf_v3s(0.0f)));
+    uint32_t qm = s_material(sc, PF_MAT_DIFFUSE, pf_v3s(0.0f), pf_v3s(1.0f));
+    pf_test_quad(sc, pf_v3(-1, 3, -1), pf_v3(2, 0, 0), pf_v3(0, 0, 2), qm);
+    s_floor(sc);
     s_finalize(sc);
     pf_lights_t *lt = pf_lights_build(sc);
     PF_CHECK(lt);
@@ -312,7 +325,7 @@ static void s_test_pdf(void)
         pf_test_quad(sc, pf_v3(-3.0f + 2.0f * (float)i, 4.0f, -2.0f), pf_v3(0.5f, 0, 0), pf_v3(0, 0, 0.5f),
                      s_material(sc, PF_MAT_DIFFUSE, pf_v3s(0.0f), pf_v3s(2.0f * f)));
     }
-    pf_test_quad(sc, pf_v3(-5, 0, 5), pf_v3(10, 0, 0), pf_v3(0, 0, -10), s_material(sc, PF_MAT_DIFFUSE, pf_v3s(0.5f), pf_v3s(0.0f)));
+    s_floor(sc);
     s_finalize(sc);
     lt = pf_lights_build(sc);
     PF_CHECK(lt);
@@ -342,9 +355,11 @@ static void s_test_photons(void)
     pf_scene_t *sc = pf_scene_create();
     s_sphere(sc, c, r, s_material(sc, PF_MAT_DIFFUSE, pf_v3s(0.0f), le));
     /* a quad light far to the side, facing away from the mirror */
-    pf_test_quad(sc, pf_v3(4, 1, 0), pf_v3(1, 0, 0), pf_v3(0, 0, 1), s_material(sc, PF_MAT_DIFFUSE, pf_v3s(0.0f), pf_v3s(0.5f)));
+    uint32_t qm = s_material(sc, PF_MAT_DIFFUSE, pf_v3s(0.0f), pf_v3s(0.5f));
+    pf_test_quad(sc, pf_v3(4, 1, 0), pf_v3(1, 0, 0), pf_v3(0, 0, 1), qm);
     /* the mirror square at y = h facing down */
-    pf_test_quad(sc, pf_v3(-0.5f * a, h, -0.5f * a), pf_v3(a, 0, 0), pf_v3(0, 0, a), s_material(sc, PF_MAT_MIRROR, pf_v3s(0.0f), pf_v3s(0.0f)));
+    uint32_t mm = s_material(sc, PF_MAT_MIRROR, pf_v3s(0.0f), pf_v3s(0.0f));
+    pf_test_quad(sc, pf_v3(-0.5f * a, h, -0.5f * a), pf_v3(a, 0, 0), pf_v3(0, 0, a), mm);
     s_finalize(sc);
     pf_lights_t *lt = pf_lights_build(sc);
     PF_CHECK(lt);
@@ -379,7 +394,8 @@ static void s_test_photons(void)
         CHECK(fabs(flux[ch].mean - want) <= 5.0 * s_se(&flux[ch]) + 1e-6 * want,
               "channel %d: photons carry %.5f on average, the power is %.5f", ch, flux[ch].mean, want);
     }
-    CHECK(nsph > 1000 && bad == 0, "%ld of %ld sphere photons with a normal not outward or a direction behind it", bad, nsph);
+    CHECK(nsph > 1000 && bad == 0, "%ld of %ld sphere photons with a normal not outward or a direction behind it", bad,
+          nsph);
     CHECK(s_chi2(bins_z, 20, nsph) < s_chi2_limit(19), "sphere photons' origins not uniform (chi2 on z %.1f)",
           s_chi2(bins_z, 20, nsph));
     CHECK(s_chi2(bins_c, 20, nsph) < s_chi2_limit(19), "sphere photons' directions not cosine-weighted (chi2 %.1f)",
@@ -400,7 +416,8 @@ static void s_test_photons(void)
     double omega = 4.0 * asin(a * a / ((a * a + 4.0 * h * h))), want = PI_D * r * r * le.y * omega;
     printf("photons onto the mirror: %.5f (se %.2g), aimed %.5f (se %.2g), analytic %.5f\n", onto.mean, s_se(&onto),
            onto_t.mean, s_se(&onto_t), want);
-    CHECK(fabs(onto.mean - want) <= 5.0 * s_se(&onto), "photons bring %.5f onto the mirror, expected %.5f", onto.mean, want);
+    CHECK(fabs(onto.mean - want) <= 5.0 * s_se(&onto), "photons bring %.5f onto the mirror, expected %.5f", onto.mean,
+          want);
     CHECK(fabs(onto_t.mean - want) <= 5.0 * s_se(&onto_t) && fabs(onto_t.mean / want - 1.0) < 0.01,
           "aimed photons bring %.5f onto the mirror, expected %.5f", onto_t.mean, want);
     pf_lights_destroy(&lt);
