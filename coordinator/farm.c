@@ -813,6 +813,8 @@ static void s_free(pf_fm_t *f)
         pthread_join(f->phtid, NULL);
     }
     pf_phq_free(&f->ph.phq);
+    pf_irq_free(&f->ph.irq);
+    pf_framed_blob_free(&f->ph.irr_fb);
     pf_photon_tracer_free(&f->ph.tracer);
     pf_framed_blob_free(&f->ph.early_fb);
     if (f->sock)
@@ -926,6 +928,12 @@ void pf_farm_summary_log(const pf_farm_summary_t *s)
                 (unsigned long long)s->ph_batches, (unsigned long long)s->ph_local, (unsigned long long)s->ph_stolen,
                 (unsigned long long)s->ph_remote, (unsigned long long)s->ph_stale, (unsigned long long)s->ph_expired,
                 s->ph_trace_s > 0 ? (double)s->ph_emitted / s->ph_trace_s / 1e6 : 0.0);
+    if (s->irr_points)
+        pf_info("summary: irradiance spread: %llu points, %llu of them computed on the coordinator alone; %llu chunks, "
+                "%llu computed on the coordinator, %llu on the workers, %llu checked here, %llu mismatches; %.2f s",
+                (unsigned long long)s->irr_points, (unsigned long long)s->irr_here, (unsigned long long)s->irr_chunks,
+                (unsigned long long)s->irr_local, (unsigned long long)s->irr_remote,
+                (unsigned long long)s->irr_checked, (unsigned long long)s->irr_mismatches, s->irr_s);
     if (s->ph_checked || s->ph_mismatches)
         pf_info("summary: photon spot checks: %llu worker batch%s traced again here, %llu mismatch%s (each a strike), "
                 "%llu worker batches discarded and traced again",

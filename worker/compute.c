@@ -62,6 +62,8 @@ void pf_w_work_free(s_work *it)
             free(it->ph_out[k].p);
         free(it->ph_out);
     }
+    free(it->irr_pts);
+    free(it->irr_n);
     free(it->rgb);
     pf_w_job_release(it->job);
     free(it);
@@ -152,6 +154,8 @@ static void *s_compute_main(void *arg)
                 s_compute_build(it);
             else if (it->kind == S_WORK_PHOTONS)
                 pf_w_compute_photons(w, it);
+            else if (it->kind == S_WORK_IRR)
+                pf_w_compute_irr(w, it);
             else
                 s_compute_tile(w, it);
         }
@@ -282,6 +286,8 @@ void pf_w_compute_stop(s_worker *w)
     w->q.todo = w->q.done = NULL;
     pf_frame_close(&w->ph_frame); /* the compute thread's; it is joined */
     w->ph_frame_ok = 0;
+    pf_photon_maps_free(&w->irr_maps);
+    w->irr_maps_hash = 0;
 }
 
 void pf_w_queue_destroy(s_queue *q)
