@@ -163,21 +163,26 @@ static void s_liar(pf_irq_t *q, uint32_t uid, const char *why)
 }
 
 /* What the photon thread does next: up to S_LOCAL_RUN consecutive free
- * chunks of one map, else a worker's chunk to check (*check), else the
- * oldest leased one (*n = 1); UINT32_MAX: nothing left. */
+ * chunks of one map, taken from the end of the table (the workers are
+ * leased from its start, so the two meet as late as they can), else a
+ * worker's chunk to check (*check), else the oldest leased one (*n = 1);
+ * UINT32_MAX: nothing left. */
 static uint32_t s_pick(pf_irq_t *q, uint32_t *n, int *check)
 {
     uint32_t oldest = UINT32_MAX, want = UINT32_MAX;
     *n = 1;
     *check = 0;
+    for (uint32_t i = q->nc; i-- > 0;) {
+        if (q->c[i].state != S_FREE)
+            continue;
+        while (*n < S_LOCAL_RUN && i > 0 && q->c[i - 1].state == S_FREE && (i - 1 < q->per_map) == (i < q->per_map)) {
+            i--;
+            (*n)++;
+        }
+        return i;
+    }
     for (uint32_t i = 0; i < q->nc; i++) {
         s_chunk *c = &q->c[i];
-        if (c->state == S_FREE) {
-            while (*n < S_LOCAL_RUN && i + *n < q->nc && q->c[i + *n].state == S_FREE &&
-                   (i < q->per_map) == (i + *n < q->per_map))
-                (*n)++;
-            return i;
-        }
         if (c->state == S_DONE && c->check == S_CHK_WANT && want == UINT32_MAX)
             want = i;
         if (c->state == S_LEASED && !c->local && (oldest == UINT32_MAX || c->leased_at < q->c[oldest].leased_at))

@@ -7,8 +7,9 @@
  * one) are cut into chunks of PF_PROTO_IRR_CHUNK_POINTS by index: chunk c
  * < C holds points [c * 4096, ...) of the irradiance map, chunk C + c the
  * same points of the deep map. The photon thread computes chunks itself
- * (pf_irq_run: runs of free ones, else the oldest leased one not yet back,
- * so it never waits on a worker); the event loop leases free ranges to
+ * (pf_irq_run: runs of free ones from the end of the table, workers being
+ * leased from its start; else the oldest leased one not yet back, so it
+ * never waits on a worker); the event loop leases free ranges to
  * idle workers (pf_irq_lease) and takes their IRR_POINTS in
  * (pf_irq_on_points). Each record lands at its index in the caller's
  * arrays, so the map built from them is the in-process one, bit for bit,

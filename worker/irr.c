@@ -65,7 +65,7 @@ static int s_try(s_worker *w, const pf_msg_irr_req_t *q)
 void pf_w_on_irr_req(s_worker *w, const pf_msg_t *m)
 {
     const pf_msg_irr_req_t *q = &m->u.irr_req;
-    s_job *j = pf_w_photons_job(w, m->job, q->scene_hash, q->scene_size, &q->settings);
+    s_job *j = pf_w_photons_job(w, m->job, q->scene_hash, q->scene_size, &q->settings, "computing irradiance chunks");
     if (!j)
         return;
     if (j->desc.maps_hash != q->maps_hash || j->desc.maps_size != q->maps_size) {

@@ -81,7 +81,7 @@ void pf_w_photons_advance(s_worker *w)
 }
 
 s_job *pf_w_photons_job(s_worker *w, uint64_t job, uint64_t scene_hash, uint64_t scene_size,
-                        const pf_settings_t *settings)
+                        const pf_settings_t *settings, const char *what)
 {
     s_job *j = w->pjob;
     if (j && j->id == job && j->desc.scene_hash == scene_hash && j->desc.scene_size == scene_size &&
@@ -100,14 +100,14 @@ s_job *pf_w_photons_job(s_worker *w, uint64_t job, uint64_t scene_hash, uint64_t
     j->refs = 1;
     atomic_init(&j->cancelled, 0);
     w->pjob = j;
-    pf_w_log(w, PF_LOG_INFO, "job %" PRIu64 ": photon pass work (scene %016" PRIx64 ")", j->id, scene_hash);
+    pf_w_log(w, PF_LOG_INFO, "job %" PRIu64 ": %s (scene %016" PRIx64 ")", j->id, what, scene_hash);
     return j;
 }
 
 void pf_w_on_photon_req(s_worker *w, const pf_msg_t *m)
 {
     const pf_msg_photon_req_t *q = &m->u.photon_req;
-    if (!pf_w_photons_job(w, m->job, q->scene_hash, q->scene_size, &q->settings))
+    if (!pf_w_photons_job(w, m->job, q->scene_hash, q->scene_size, &q->settings, "tracing photon batches"))
         return;
     s_blob *sb = pf_w_blob_get(w, q->scene_hash, q->scene_size, "scene");
     if (!sb) {

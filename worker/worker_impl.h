@@ -296,10 +296,10 @@ void pf_w_photons_sent(s_worker *w, s_work *it);
 /* Compute thread: traces a PHOTONS item's batches. */
 void pf_w_compute_photons(s_worker *w, s_work *it);
 /* The photon job for (job, scene blob, settings): the current one when
- * they match, else a new one (the old one dropped); NULL when memory is
- * short. */
+ * they match, else a new one (the old one dropped; `what` it is for goes
+ * to the log); NULL when memory is short. */
 s_job *pf_w_photons_job(s_worker *w, uint64_t job, uint64_t scene_hash, uint64_t scene_size,
-                        const pf_settings_t *settings);
+                        const pf_settings_t *settings, const char *what);
 /* Compute thread: w->ph_frame built for the item's scene blob. 0, or -1
  * with it->error set. */
 int pf_w_photon_frame(s_worker *w, s_work *it);
