@@ -7,8 +7,10 @@
  * thread serializes the maps without irradiance (the global map is what an
  * estimate reads; caustic and irradiance maps are left empty), frames that
  * blob and makes the chunk table; the event loop publishes the blob (the
- * blob server's maps slot: no JOB is out yet) and leases chunk ranges to
- * welcomed workers without a JOB (IRR_REQ), which fetch the blob (and the
+ * blob server's maps slot: no JOB is out yet; its own fan-out tree, each
+ * worker's BLOB_PLAN sent before its first IRR_REQ) and leases chunk
+ * ranges to welcomed workers without a JOB (IRR_REQ), which fetch the
+ * blob (from a peer or from here, as the plan says; and the
  * scene blob, if the photon pass did not give it them), compute the points
  * with pf_irradiance_points and send each chunk back (IRR_POINTS). The
  * thread computes chunks too and takes over leased ones when none is free,
@@ -107,6 +109,10 @@ static void s_lease(pf_fm_t *f, int wi, pf_irq_t *q)
     if (n == 0)
         return;
     const pf_fm_photons_t *p = &f->ph;
+    if (!w->irr_planned) {
+        pf_fm_fanout_job(f, wi); /* where to fetch the map blob from: a peer, or here */
+        w->irr_planned = 1;
+    }
     pf_msg_t m = { .type = PF_MSG_IRR_REQ };
     m.job = p->job;
     m.u.irr_req = (pf_msg_irr_req_t){ p->early_hash, p->early_size, p->irr_hash, p->irr_size, p->settings, first, n };
@@ -148,6 +154,9 @@ void pf_fm_irr_tick(pf_fm_t *f)
         return;
     s_strike_liars(f, q);
     if (!f->irr_published) {
+        /* its own fan-out tree (the JOB's maps blob starts another) */
+        if (pf_fanout_set_blob(f->fan, &f->ph.irr_fb) != PF_OK)
+            pf_warn("irradiance: out of memory for the map blob's fan-out plan; workers fetch it from here");
         pf_xfer_set_maps(f->xfer, &f->ph.irr_fb);
         f->irr_published = 1;
     }
