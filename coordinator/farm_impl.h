@@ -153,6 +153,7 @@ typedef struct pf_fm {
     int resumed_pass;
     int ph_published; /* the early scene blob is with the blob server */
     int irr_published; /* the map blob without irradiance is with the blob server */
+    uint64_t irr_served_hash; /* its hash, once published (the event loop's copy) */
 } pf_fm_t;
 
 /* farm_peers.c */

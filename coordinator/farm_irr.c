@@ -159,6 +159,7 @@ void pf_fm_irr_tick(pf_fm_t *f)
             pf_warn("irradiance: out of memory for the map blob's fan-out plan; workers fetch it from here");
         pf_xfer_set_maps(f->xfer, &f->ph.irr_fb);
         f->irr_published = 1;
+        f->irr_served_hash = f->ph.irr_hash;
     }
     uint32_t n = pf_irq_expire(q, pf_now(), S_LEASE_TIMEOUT_S);
     if (n && pf_fm_may_log(&f->peer_log, 10.0))

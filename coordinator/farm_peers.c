@@ -341,7 +341,7 @@ static void s_on_blob_req(pf_fm_t *f, int wi, const pf_msg_blob_req_t *r)
     pf_worker_t *w = &f->reg.w[wi];
     char why[320];
     int rc = 1;
-    if (f->ph.irr_hash && r->hash == f->ph.irr_hash && !f->irr_published)
+    if (f->irr_served_hash && r->hash == f->irr_served_hash && !f->irr_published)
         return; /* the irradiance's map blob, asked before its JOB reached the worker: no longer served */
     if (w->state != PF_W_JOB_SENT && !(w->state == PF_W_HELLO && pf_fm_photons_blob_ok(f, wi, r->hash)))
         snprintf(why, sizeof why, "BLOB_REQ %s", w->state == PF_W_HELLO ? "before its JOB" : "after READY");
