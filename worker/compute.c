@@ -150,14 +150,18 @@ static void *s_compute_main(void *arg)
         pthread_mutex_unlock(&q->mu);
 
         if (!atomic_load(&it->job->cancelled)) {
-            if (it->kind == S_WORK_BUILD)
+            if (it->kind == S_WORK_BUILD) {
+                /* A JOB: the photon work is over; its global map goes */
+                pf_photon_maps_free(&w->irr_maps);
+                w->irr_maps_hash = 0;
                 s_compute_build(it);
-            else if (it->kind == S_WORK_PHOTONS)
+            } else if (it->kind == S_WORK_PHOTONS) {
                 pf_w_compute_photons(w, it);
-            else if (it->kind == S_WORK_IRR)
+            } else if (it->kind == S_WORK_IRR) {
                 pf_w_compute_irr(w, it);
-            else
+            } else {
                 s_compute_tile(w, it);
+            }
         }
 
         pthread_mutex_lock(&q->mu);

@@ -182,8 +182,10 @@ BIG=(--size 192x192 --spp 25 --photons 50000 --caustic-photons 50000 --gather 8)
 # Four progressive passes of a few seconds in all.
 PROG=(--size 128x128 --spp 6 --photons 30000 --caustic-photons 30000 --gather 4 --passes 4)
 FARM=(--tile 16 --heartbeat-ms 200)
-# A photon pass of several seconds before a tiny image (glass: caustic batches too).
-PHOT=(--size 32x32 --spp 1 --photons 1500000 --caustic-photons 300000 --gather 4)
+# A photon pass of several seconds before a tiny image (glass: caustic batches too;
+# k 300: irradiance estimates long enough that workers, which fetch the global
+# map first, take chunks before the coordinator has done them all).
+PHOT=(--size 32x32 --spp 1 --photons 1500000 --caustic-photons 300000 --gather 4 --global-k 300)
 
 # coordinator NAME SCENE PORT SETTINGS_VAR [extra options...]: starts a cluster
 # coordinator on tcp://127.0.0.1:PORT writing $T/NAME.pfm; pid in $LASTPID.
