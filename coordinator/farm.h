@@ -119,6 +119,8 @@ typedef struct pf_farm_summary {
      * of spread passes, computed here and on the workers, worker chunks
      * checked here and mismatches; the precompute's wall time. */
     uint64_t irr_points, irr_here, irr_chunks, irr_local, irr_remote, irr_checked, irr_mismatches;
+    uint64_t irr_blob_size, irr_blob_sent; /* the global map's blob: its size and the bytes sent of it (not in
+                                              maps_blob_*) */
     double irr_s;
 } pf_farm_summary_t;
 

@@ -154,6 +154,7 @@ typedef struct pf_fm {
     int ph_published; /* the early scene blob is with the blob server */
     int irr_published; /* the map blob without irradiance is with the blob server */
     uint64_t irr_served_hash; /* its hash, once published (the event loop's copy) */
+    uint64_t irr_sent0;       /* the maps slot's bytes sent before it was published */
 } pf_fm_t;
 
 /* farm_peers.c */

@@ -33,9 +33,14 @@
 #include "coordinator/farm_impl.h"
 #include "photon/mapfile.h"
 
-/* Fewer points (both maps) than this are computed here: a round trip and
- * a 20-odd-MB blob cost more than they save. */
-#define S_MIN_POINTS ((size_t)8 * PF_PROTO_IRR_CHUNK_POINTS)
+/* Fewer points (both maps) than this are computed here: a few core-seconds
+ * of estimates, which the global map's trip to the workers (and its chunks
+ * queued ahead of their JOB, which delays the JOB's fan-out) would eat.
+ * Measured in tests/integration/test_fanout.sh: 12 chunks spread over 6
+ * workers behind an 80 Mbit/s link were all done here in 0.4 s while the
+ * workers still fetched the map, and the JOB reached the fan-out tree's
+ * root after its children had asked it for the maps. */
+#define S_MIN_POINTS ((size_t)64 * PF_PROTO_IRR_CHUNK_POINTS)
 #define S_LEASE_TIMEOUT_S 30.0
 
 /* Every point here, as pf_photon_build computes them. */
@@ -157,6 +162,8 @@ void pf_fm_irr_tick(pf_fm_t *f)
         /* its own fan-out tree (the JOB's maps blob starts another) */
         if (pf_fanout_set_blob(f->fan, &f->ph.irr_fb) != PF_OK)
             pf_warn("irradiance: out of memory for the map blob's fan-out plan; workers fetch it from here");
+        uint64_t size0;
+        pf_xfer_blob_bytes(f->xfer, 1, &size0, &f->irr_sent0);
         pf_xfer_set_maps(f->xfer, &f->ph.irr_fb);
         f->irr_published = 1;
         f->irr_served_hash = f->ph.irr_hash;
@@ -211,6 +218,13 @@ int pf_fm_irr_release(pf_fm_t *f, int wi)
 void pf_fm_irr_end(pf_fm_t *f)
 {
     pf_fm_photons_t *p = &f->ph;
+    if (f->irr_published && f->xfer) {
+        /* its bytes, apart from the maps blobs' (the summary's fan-out line) */
+        uint64_t size, sent;
+        pf_xfer_blob_bytes(f->xfer, 1, &size, &sent);
+        f->sum->irr_blob_size += p->irr_size;
+        f->sum->irr_blob_sent += sent - f->irr_sent0;
+    }
     f->irr_published = 0;
     pf_framed_blob_free(&p->irr_fb); /* when the blob server did not take it */
     pf_farm_summary_t *sum = f->sum;

@@ -6,9 +6,9 @@
  * ones when none is free, so it never waits for a worker); the event loop
  * leases free batches to welcomed workers that have no JOB yet, one range at
  * a time (PHOTON_REQ), and takes their PHOTONS in. When every batch is done
- * the thread merges them in batch order and builds the trees and the
- * irradiance as the in-process pass does: the maps are the same bits for any
- * number of workers, and the coordinator still builds them once.
+ * the thread merges them in batch order and builds the trees as the
+ * in-process pass does, and the irradiance points with the workers
+ * (farm_irr.c): the maps are the same bits for any number of workers.
  *
  * A later progressive pass's photons are traced while the workers gather
  * the pass before: the photon thread traces free batches as it goes, and a
