@@ -100,6 +100,7 @@ SCENES = {
 # path-length limit of 3 or more (the pbrt interior: maxdepth 8; the deep
 # gathers' map, photonmap.h), else 1.
 IRR_RECORD_BYTES = 32     # an irradiance point on the wire (IRR_POINTS)
+IRR_MIN_POINTS = 64 * 4096  # coordinator/farm_irr.c S_MIN_POINTS: fewer (both maps) stay on the coordinator
 # The validation's configuration: small enough to render in seconds, with a
 # maps blob (~15 MB) that takes seconds on the limited links.
 VALID = dict(scene=os.path.join(ROOT, 'scenes', 'cornell-box', 'scene.json'),
@@ -342,6 +343,8 @@ def irr_spread_s(c, common, W, threads, coord_cores, spread, R, r, rtt_s, irr_ma
     here = irr * common['machine']['cores'] / coord_cores
     gbytes = c['stored_photons'] * PHOTON_BYTES
     points = max(0, c['maps_bytes'] // PHOTON_BYTES - c['stored_photons']) * irr_maps
+    if points < IRR_MIN_POINTS:
+        return here   # farm_irr.c computes small precomputes on the coordinator alone
     ser = gbytes / common['transfer']['serialize_Bps']
     out = spread(gbytes, W)
     read = gbytes / common['transfer']['serialize_Bps']   # the worker validates and rebuilds the tree
