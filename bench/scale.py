@@ -26,8 +26,18 @@ links' bandwidth and latency:
                 per-message cost) and receives 12 bytes a pixel
   distributed tracing (switch): workers get the scene first, trace the
                 photons in parallel and upload the photon records (32 bytes
-                each) to the coordinator, which still builds the kd-trees and
-                the irradiance points on its own cores
+                each) to the coordinator, which builds the kd-trees on its
+                own cores; then the irradiance points are spread too
+                (coordinator/farm_irr.c): the coordinator serializes the
+                global map alone (32 bytes a stored photon) and every worker
+                fetches it (with fan-out down its own tree, as the maps
+                blob; without, W copies through the coordinator's link),
+                reads it, and the points'
+                core-seconds spread over W x threads, their records (32
+                bytes each, both maps under a path-length limit) coming back
+                through the coordinator's link; the coordinator computes
+                chunks itself meanwhile and never waits, so the step takes
+                no longer than computing every point there
 
 Efficiency E(W) = T(1) / (W T(W)), the same model and configuration at one
 worker. Defaults: a worker and the coordinator are each a machine like this
@@ -87,16 +97,23 @@ SCENES = {
     'interior': dict(scene=os.path.join(ROOT, '..', 'shared', 'scenes', 'bitterli', 'dining-room', 'scene-v4.pbrt'),
                      label='Bitterli dining room (pbrt-v4 interior), 1280x720, spp 64',
                      size=(1280, 720), measure_size=(160, 90),
-                     opts=['--spp', '64', '--photons', '1000000', '--caustic-photons', '200000']),
+                     opts=['--spp', '64', '--photons', '1000000', '--caustic-photons', '200000'],
+                     irr_maps=2),
     'interior-hq': dict(scene=os.path.join(ROOT, '..', 'shared', 'scenes', 'bitterli', 'dining-room', 'scene-v4.pbrt'),
                         label='Bitterli dining room, 1280x720, final quality (spp 256)',
                         size=(1280, 720), measure_size=(160, 90),
-                        opts=['--spp', '256', '--photons', '1000000', '--caustic-photons', '200000']),
+                        opts=['--spp', '256', '--photons', '1000000', '--caustic-photons', '200000'],
+                        irr_maps=2),
     'cornell': dict(scene=os.path.join(ROOT, 'scenes', 'cornell-box', 'scene.json'),
                     label='Cornell box (scenes/cornell-box), 512x512',
                     size=(512, 512), measure_size=(128, 128),
-                    opts=['--spp', '36', '--photons', '400000']),
+                    opts=['--spp', '36', '--photons', '400000'], irr_maps=1),
 }
+# Irradiance maps a scene's precompute makes (irr_maps above): 2 under a
+# path-length limit of 3 or more (the pbrt interior: maxdepth 8; the deep
+# gathers' map, photonmap.h), else 1.
+IRR_RECORD_BYTES = 32     # an irradiance point on the wire (IRR_POINTS)
+IRR_MIN_POINTS = 64 * 4096  # coordinator/farm_irr.c S_MIN_POINTS: fewer (both maps) stay on the coordinator
 # The validation's configuration: small enough to render in seconds, with a
 # maps blob (~15 MB) that takes seconds on the limited links.
 VALID = dict(scene=os.path.join(ROOT, 'scenes', 'cornell-box', 'scene.json'),
@@ -360,8 +377,33 @@ def makespan(costs, slots):
     return max(free)
 
 
+def irr_spread_s(c, common, W, threads, coord_cores, spread, R, r, rtt_s, irr_maps=1):
+    """The irradiance precompute spread over W workers (coordinator/farm_irr.c):
+    the coordinator serializes the global map (the stored photons, 32 bytes
+    each, caustic ones included as an upper bound) and the workers fetch it
+    (spread(): down the fan-out tree with the fanout switch, else W copies
+    through the coordinator's link) and
+    read it; the points' core-seconds (measured on the coordinator's cores)
+    run on W x threads cores; their records (IRR_RECORD_BYTES, points of
+    every map) come back into the coordinator's link. The coordinator
+    computes chunks itself meanwhile (work stealing): the step never takes
+    longer than computing them all there."""
+    irr = c['irradiance_s']
+    here = irr * common['machine']['cores'] / coord_cores
+    gbytes = c['stored_photons'] * PHOTON_BYTES
+    points = max(0, c['maps_bytes'] // PHOTON_BYTES - c['stored_photons']) * irr_maps
+    if points < IRR_MIN_POINTS:
+        return here   # farm_irr.c computes small precomputes on the coordinator alone
+    ser = gbytes / common['transfer']['serialize_Bps']
+    out = spread(gbytes, W)
+    read = gbytes / common['transfer']['serialize_Bps']   # the worker validates and rebuilds the tree
+    compute = irr * common['machine']['cores'] / (W * threads)
+    back = points * IRR_RECORD_BYTES / R + rtt_s
+    return min(here, ser + out + read + max(compute, back))
+
+
 def predict(c, common, W, link_bps=10e9, coord_bps=None, rtt_s=1e-4, fanout=False, dtrace=False,
-            threads=None, coord_cores=None, tile=32, shared=None, size=None, parts=False):
+            threads=None, coord_cores=None, tile=32, shared=None, size=None, parts=False, irr_maps=None):
     """Wall time (s) of one render of scene costs `c` on W workers.
 
     link_bps: each worker's link (bits/s); coord_bps: the coordinator's
@@ -419,7 +461,12 @@ def predict(c, common, W, link_bps=10e9, coord_bps=None, rtt_s=1e-4, fanout=Fals
         t['scene'] = 0.0
         t['trace'] = trace * common['machine']['cores'] / coord_cores
         S = S_maps + S_scene
-    t['kd+irradiance'] = (kd + irr) * common['machine']['cores'] / coord_cores
+    if dtrace:
+        t['kd'] = kd * common['machine']['cores'] / coord_cores
+        t['irradiance'] = irr_spread_s(c, common, W, threads, coord_cores, spread, R, r, rtt_s,
+                                       irr_maps or c.get('irr_maps', 1))
+    else:
+        t['kd+irradiance'] = (kd + irr) * common['machine']['cores'] / coord_cores
     t['serialize'] = ser_s
     t['distribute'] = spread(S, W)
     t['worker build'] = c['wbuild_s'] * slow(W * threads)
@@ -721,6 +768,8 @@ def main(argv=None):
         costs = cmd_measure(args)
     else:
         costs = json.load(open(COSTS))
+    for name, sc in costs.get('scenes', {}).items():
+        sc.setdefault('irr_maps', SCENES.get(name, {}).get('irr_maps', 1))
     if args.check:
         return cmd_check(args, costs)
     cmd_report(costs, args)

@@ -781,6 +781,8 @@ static void s_sum_up(pf_fm_t *f)
     if (f->xfer) {
         pf_xfer_blob_bytes(f->xfer, 0, &sum->scene_blob_size, &sum->scene_blob_sent);
         pf_xfer_blob_bytes(f->xfer, 1, &sum->maps_blob_size, &sum->maps_blob_sent);
+        sum->maps_blob_size -= sum->irr_blob_size; /* the irradiance's map blob shared the slot */
+        sum->maps_blob_sent -= sum->irr_blob_sent;
     }
     for (int i = 0; i < f->reg.nw; i++) {
         const pf_worker_t *w = &f->reg.w[i];
@@ -817,6 +819,8 @@ static void s_free(pf_fm_t *f)
         pthread_join(f->phtid, NULL);
     }
     pf_phq_free(&f->ph.phq);
+    pf_irq_free(&f->ph.irq);
+    pf_framed_blob_free(&f->ph.irr_fb);
     pf_photon_tracer_free(&f->ph.tracer);
     pf_framed_blob_free(&f->ph.early_fb);
     if (f->sock)
@@ -932,6 +936,16 @@ void pf_farm_summary_log(const pf_farm_summary_t *s)
                 (unsigned long long)s->ph_batches, (unsigned long long)s->ph_local, (unsigned long long)s->ph_stolen,
                 (unsigned long long)s->ph_remote, (unsigned long long)s->ph_stale, (unsigned long long)s->ph_expired,
                 s->ph_trace_s > 0 ? (double)s->ph_emitted / s->ph_trace_s / 1e6 : 0.0);
+    if (s->irr_blob_size)
+        pf_info("summary: the irradiance's map blob (the global map): %llu bytes sent for %llu bytes (%.2f x)",
+                (unsigned long long)s->irr_blob_sent, (unsigned long long)s->irr_blob_size,
+                (double)s->irr_blob_sent / (double)s->irr_blob_size);
+    if (s->irr_points)
+        pf_info("summary: irradiance spread: %llu points, %llu of them computed on the coordinator alone; %llu chunks, "
+                "%llu computed on the coordinator, %llu on the workers, %llu checked here, %llu mismatches; %.2f s",
+                (unsigned long long)s->irr_points, (unsigned long long)s->irr_here, (unsigned long long)s->irr_chunks,
+                (unsigned long long)s->irr_local, (unsigned long long)s->irr_remote,
+                (unsigned long long)s->irr_checked, (unsigned long long)s->irr_mismatches, s->irr_s);
     if (s->ph_checked || s->ph_mismatches)
         pf_info("summary: photon spot checks: %llu worker batch%s traced again here, %llu mismatch%s (each a strike), "
                 "%llu worker batches discarded and traced again",

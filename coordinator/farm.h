@@ -115,6 +115,14 @@ typedef struct pf_farm_summary {
     uint64_t ph_batches, ph_local, ph_remote, ph_stale, ph_expired, ph_stolen, ph_emitted;
     double ph_trace_s;
     uint64_t ph_checked, ph_mismatches, ph_discarded;
+    /* The irradiance precompute (farm_irr.c), all passes: its points (both
+     * maps), those of passes computed on the coordinator alone, the chunks
+     * of spread passes, computed here and on the workers, worker chunks
+     * checked here and mismatches; the precompute's wall time. */
+    uint64_t irr_points, irr_here, irr_chunks, irr_local, irr_remote, irr_checked, irr_mismatches;
+    uint64_t irr_blob_size, irr_blob_sent; /* the global map's blob: its size and the bytes sent of it (not in
+                                              maps_blob_*) */
+    double irr_s;
 } pf_farm_summary_t;
 
 /* Renders scene with settings through workers into *img (allocated here).

@@ -14,6 +14,7 @@
 #include "coordinator/budget.h"
 #include "coordinator/checkpoint.h"
 #include "coordinator/fanout.h"
+#include "coordinator/irr_chunks.h"
 #include "coordinator/leases.h"
 #include "coordinator/ph_batches.h"
 #include "coordinator/progress.h"
@@ -65,6 +66,20 @@ typedef struct pf_fm_photons {
     pf_photon_tracer_t *tracer;
     pf_phq_t *phq;
     int phq_ready; /* atomic */
+    /* The irradiance precompute spread over the workers (farm_irr.c): the
+     * thread frames the map blob without irradiance (irr_fb), makes the
+     * chunk table and sets irq_ready; the event loop publishes the blob,
+     * leases chunks and frees the table once the thread is joined.
+     * irr_workers (atomic, the event loop's count of workers that could
+     * take chunks now): none, and the thread computes every point itself
+     * without framing anything. */
+    pf_irq_t *irq;
+    int irq_ready;
+    int irr_workers;
+    pf_framed_blob_t irr_fb;
+    uint64_t irr_hash, irr_size;
+    uint64_t irr_points; /* points of both maps */
+    double irr_s;        /* the precompute's wall time */
     uint64_t scene_hash, maps_hash, scene_size, maps_size;
     int rc;
     volatile int done;
@@ -139,6 +154,9 @@ typedef struct pf_fm {
     pf_ckpt_t resumed;
     int resumed_pass;
     int ph_published; /* the early scene blob is with the blob server */
+    int irr_published; /* the map blob without irradiance is with the blob server */
+    uint64_t irr_served_hash; /* its hash, once published (the event loop's copy) */
+    uint64_t irr_sent0;       /* the maps slot's bytes sent before it was published */
 } pf_fm_t;
 
 /* farm_peers.c */
@@ -224,6 +242,23 @@ int pf_fm_photons_release(pf_fm_t *f, int wi);
 /* The photon thread is joined: the table's figures into the summary, the
  * table freed, a log line. */
 void pf_fm_photons_end(pf_fm_t *f);
+
+/* farm_irr.c */
+
+/* Photon thread: the pf_irr_spread_t hook of the pass's merge (ctx: the
+ * pf_fm_photons_t): the irradiance points computed here and on the
+ * workers, or all here (no worker, a tiny map, a later pass). */
+int pf_fm_irr_points(void *ctx, const pf_photon_maps_t *maps, const pf_irr_plan_t *plan, pf_photon_t *main,
+                     pf_photon_t *deep);
+/* Event loop: publishes the blob, expires leases, leases chunks to idle
+ * welcomed workers, strikes the workers the spot checks caught. */
+void pf_fm_irr_tick(pf_fm_t *f);
+/* An IRR_POINTS from worker wi. */
+void pf_fm_on_irr_points(pf_fm_t *f, int wi, const pf_msg_t *m);
+/* Worker wi's chunks go back to the free list; how many. */
+int pf_fm_irr_release(pf_fm_t *f, int wi);
+/* The photon thread is joined: a log line, the table freed. */
+void pf_fm_irr_end(pf_fm_t *f);
 
 /* farm_peers.c: fan-out (the tree: fanout.c) */
 /* The scene's BLOB_PLAN for worker wi before its first PHOTON_REQ of the

@@ -342,6 +342,8 @@ static void s_on_blob_req(pf_fm_t *f, int wi, const pf_msg_blob_req_t *r)
     pf_worker_t *w = &f->reg.w[wi];
     char why[320];
     int rc = 1;
+    if (f->irr_served_hash && r->hash == f->irr_served_hash && !f->irr_published)
+        return; /* the irradiance's map blob, asked before its JOB reached the worker: no longer served */
     if (w->state != PF_W_JOB_SENT && !(w->state == PF_W_HELLO && pf_fm_photons_blob_ok(f, wi, r->hash)))
         snprintf(why, sizeof why, "BLOB_REQ %s", w->state == PF_W_HELLO ? "before its JOB" : "after READY");
     else
@@ -412,6 +414,7 @@ static void s_dispatch(pf_fm_t *f, int wi, const pf_msg_t *m)
     case PF_MSG_READY: s_on_ready(f, wi, &m->u.ready); break;
     case PF_MSG_RESULT: s_on_result(f, wi, &m->u.result); break;
     case PF_MSG_PHOTONS: pf_fm_on_photons(f, wi, m); break;
+    case PF_MSG_IRR_POINTS: pf_fm_on_irr_points(f, wi, m); break;
     case PF_MSG_BYE:
         if (pf_fm_may_log(&f->peer_log, 10.0)) {
             char reason[1024];
@@ -473,7 +476,7 @@ void pf_fm_on_frame(pf_fm_t *f, const uint8_t *id, size_t idlen, const char *key
     }
     w->last_seen = pf_now();
     if (m.type != PF_MSG_BYE && m.job != f->job && m.type != PF_MSG_HEARTBEAT &&
-        !(m.type == PF_MSG_PHOTONS && m.job == f->ph.job)) {
+        !((m.type == PF_MSG_PHOTONS || m.type == PF_MSG_IRR_POINTS) && m.job == f->ph.job)) {
         pf_debug("dropped %s for job %llu from %s", pf_msg_type_name(m.type), (unsigned long long)m.job, peer);
         return;
     }

@@ -6,9 +6,9 @@
  * ones when none is free, so it never waits for a worker); the event loop
  * leases free batches to welcomed workers that have no JOB yet, one range at
  * a time (PHOTON_REQ), and takes their PHOTONS in. When every batch is done
- * the thread merges them in batch order and builds the trees and the
- * irradiance as the in-process pass does: the maps are the same bits for any
- * number of workers, and the coordinator still builds them once.
+ * the thread merges them in batch order and builds the trees as the
+ * in-process pass does, and the irradiance points with the workers
+ * (farm_irr.c): the maps are the same bits for any number of workers.
  *
  * A later progressive pass's photons are traced while the workers gather
  * the pass before: the photon thread traces free batches as it goes, and a
@@ -78,8 +78,9 @@ int pf_fm_photons_spread(pf_fm_photons_t *p, pf_photon_maps_t *maps)
     double t0 = pf_now();
     rc = pf_phq_run(p->phq, s->threads > 0 ? s->threads : 1);
     p->stats.trace_s = pf_now() - t0;
+    pf_irr_spread_t spread = { pf_fm_irr_points, p };
     if (rc == PF_OK)
-        rc = pf_phq_merge(p->phq, p->scene, fr->accel, s, maps, &p->stats);
+        rc = pf_phq_merge(p->phq, p->scene, fr->accel, s, maps, &p->stats, &spread);
     return rc;
 }
 
@@ -149,6 +150,7 @@ static int s_may_interleave(const pf_fm_t *f, pf_phq_t *q)
 
 void pf_fm_photons_tick(pf_fm_t *f)
 {
+    pf_fm_irr_tick(f);
     pf_phq_t *q = s_phq(f);
     if (!q)
         return;
@@ -210,19 +212,21 @@ void pf_fm_on_photons(pf_fm_t *f, int wi, const pf_msg_t *m)
 
 int pf_fm_photons_blob_ok(const pf_fm_t *f, int wi, uint64_t hash)
 {
-    return f->ph_published && !f->job_ready && f->reg.w[wi].ph_asked && hash == f->ph.early_hash;
+    return f->ph_published && !f->job_ready && f->reg.w[wi].ph_asked &&
+           (hash == f->ph.early_hash || (f->irr_published && hash == f->ph.irr_hash));
 }
 
 int pf_fm_photons_release(pf_fm_t *f, int wi)
 {
     pf_phq_t *q = s_phq(f);
-    return q ? (int)pf_phq_release(q, f->reg.w[wi].uid) : 0;
+    return (q ? (int)pf_phq_release(q, f->reg.w[wi].uid) : 0) + pf_fm_irr_release(f, wi);
 }
 
 void pf_fm_photons_end(pf_fm_t *f)
 {
     pf_fm_photons_t *p = &f->ph;
     f->ph_published = 0; /* the blob server has the JOB's blobs from now on */
+    pf_fm_irr_end(f);
     if (!p->phq) {
         pf_photon_tracer_free(&p->tracer);
         pf_framed_blob_free(&p->early_fb);

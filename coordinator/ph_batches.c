@@ -505,7 +505,7 @@ int pf_phq_on_photons(pf_phq_t *q, uint32_t uid, const pf_msg_photons_t *p, char
 }
 
 int pf_phq_merge(pf_phq_t *q, const pf_scene_t *scene, const pf_accel_t *accel, const pf_settings_t *settings,
-                 pf_photon_maps_t *maps, pf_photon_stats_t *stats)
+                 pf_photon_maps_t *maps, pf_photon_stats_t *stats, const pf_irr_spread_t *spread)
 {
     pthread_mutex_lock(&q->mu);
     int complete = q->ndone == q->nb;
@@ -518,7 +518,7 @@ int pf_phq_merge(pf_phq_t *q, const pf_scene_t *scene, const pf_accel_t *accel, 
     pthread_mutex_unlock(&q->mu);
     if (!res)
         return complete ? PF_ENOMEM : PF_EINVAL;
-    int rc = pf_photon_merge(scene, accel, settings, &q->plan, res, maps, stats);
+    int rc = pf_photon_merge_spread(scene, accel, settings, &q->plan, res, maps, stats, spread);
     for (uint32_t i = 0; i < q->nb; i++)
         free(res[i].p);
     free(res);

@@ -72,10 +72,11 @@ enum { PF_PHQ_PART = 0, PF_PHQ_DONE = 1, PF_PHQ_STALE = 2, PF_PHQ_BAD = -1 };
  * is dropped and the batch is free again). */
 int pf_phq_on_photons(pf_phq_t *q, uint32_t uid, const pf_msg_photons_t *p, char *why, size_t why_len);
 
-/* Joins the batches and builds the maps (pf_photon_merge). Call after
+/* Joins the batches and builds the maps (pf_photon_merge_spread: spread
+ * computes the irradiance points, NULL: here). Call after
  * pf_phq_run returned 0. */
 int pf_phq_merge(pf_phq_t *q, const pf_scene_t *scene, const pf_accel_t *accel, const pf_settings_t *settings,
-                 pf_photon_maps_t *maps, pf_photon_stats_t *stats);
+                 pf_photon_maps_t *maps, pf_photon_stats_t *stats, const pf_irr_spread_t *spread);
 
 /* Who traced what: batches in all, by the coordinator, by workers (the
  * results kept); photons emitted in all; stale results dropped; leases

@@ -47,6 +47,8 @@ typedef struct pf_worker {
     uint64_t ph_batches; /* photon batches of its that counted */
     uint64_t ph_pass;    /* of them, the current photon pass's (the pass's log line) */
     int ph_barred;       /* returned a photon batch unlike the coordinator's trace: no more batches this job */
+    uint64_t irr_pass;   /* irradiance chunks of its that counted, this pass (irr_chunks.h) */
+    int irr_planned;     /* it was sent the BLOB_PLAN of the irradiance's map blob (fan-out) */
 } pf_worker_t;
 
 typedef struct pf_registry {

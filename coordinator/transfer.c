@@ -198,6 +198,15 @@ void pf_xfer_set_blobs(pf_xfer_t *x, pf_framed_blob_t *scene, pf_framed_blob_t *
     memset(maps, 0, sizeof *maps);
 }
 
+void pf_xfer_set_maps(pf_xfer_t *x, pf_framed_blob_t *maps)
+{
+    if (maps->data && maps->hash != x->blob[1].hash)
+        x->sizes[1] += maps->size;
+    s_retire(x, &x->blob[1]);
+    x->blob[1] = *maps;
+    memset(maps, 0, sizeof *maps);
+}
+
 int pf_xfer_reset(pf_xfer_t *x, int slot)
 {
     s_slot *s = &x->slots[slot];

@@ -63,6 +63,10 @@ void pf_xfer_destroy(pf_xfer_t **x_p);
  * still hold their chunks. */
 void pf_xfer_set_blobs(pf_xfer_t *x, pf_framed_blob_t *scene, pf_framed_blob_t *maps);
 
+/* Takes only the maps blob (*maps zeroed); the scene blob stays. The one
+ * set before is kept until pf_xfer_destroy. */
+void pf_xfer_set_maps(pf_xfer_t *x, pf_framed_blob_t *maps);
+
 /* A new worker in this slot: what was asked for the old one is forgotten
  * (chunks libzmq still holds for it count against no one). 0 or PF_ENOMEM. */
 int pf_xfer_reset(pf_xfer_t *x, int slot);

@@ -74,7 +74,17 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
                         "PHOTON_REQ range %u+%u", msg.u.photon_req.first, msg.u.photon_req.count);
         break;
     }
-    case PF_MSG_PHOTONS: {
+    case PF_MSG_IRR_REQ: {
+        char text[256];
+        PF_FUZZ_REQUIRE(pf_settings_check(&msg.u.irr_req.settings, text, sizeof text) == PF_OK,
+                        "a decoded IRR_REQ has settings out of range: %s", text);
+        PF_FUZZ_REQUIRE(msg.u.irr_req.count >= 1 && msg.u.irr_req.maps_size >= 1 &&
+                            (uint64_t)msg.u.irr_req.first + msg.u.irr_req.count <= PF_PROTO_MAX_IRR_CHUNKS,
+                        "IRR_REQ range %u+%u", msg.u.irr_req.first, msg.u.irr_req.count);
+        break;
+    }
+    case PF_MSG_PHOTONS:
+    case PF_MSG_IRR_POINTS: {
         const pf_msg_photons_t *p = &msg.u.photons;
         PF_FUZZ_REQUIRE(p->first + p->n <= p->total && p->indirect <= p->total, "PHOTONS counts");
         photons = malloc((p->n + 1) * sizeof *photons);

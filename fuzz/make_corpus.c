@@ -194,6 +194,20 @@ static void s_messages(void)
                                       .photons = ph };
     s_put_msg("seed-photons", &m);
 
+    memset(&m, 0, sizeof m);
+    m.type = PF_MSG_IRR_POINTS;
+    m.job = 7;
+    m.u.photons = (pf_msg_photons_t){ .batch = 30, .total = 3, .n = 3, .photons = ph };
+    s_put_msg("seed-irr-points", &m);
+
+    memset(&m, 0, sizeof m);
+    m.type = PF_MSG_IRR_REQ;
+    m.job = 7;
+    m.u.irr_req = (pf_msg_irr_req_t){ .scene_hash = 0x0123456789abcdefull, .scene_size = 4096, .maps_hash = 0x55aa,
+                                      .maps_size = 1 << 20, .first = 4, .count = 8 };
+    m.u.irr_req.settings = pf_settings_default();
+    s_put_msg("seed-irr-req", &m);
+
     uint64_t leaves[3] = { 0x1111, 0x2222, 0x3333 };
     memset(&m, 0, sizeof m);
     m.type = PF_MSG_BLOB_PLAN;

@@ -31,18 +31,38 @@ int pf_irradiance_precompute(const pf_kdtree_t *global, int stride, int k, float
     return pf_irradiance_precompute_limited(global, stride, k, max_r2, shrink2, 0, accel, threads, out);
 }
 
+size_t pf_irradiance_count(size_t n, int stride)
+{
+    size_t st = stride < 1 ? 1 : (size_t)stride;
+    return (n + st - 1) / st;
+}
+
 int pf_irradiance_precompute_limited(const pf_kdtree_t *global, int stride, int k, float max_r2, float shrink2,
                                      unsigned bounce_limit, const pf_accel_t *accel, int threads, pf_kdtree_t **out)
 {
-    if (stride < 1)
-        stride = 1;
-    if (k > PF_MAX_K)
-        k = PF_MAX_K;
-    size_t n = pf_kdtree_size(global);
-    size_t m = (n + (size_t)stride - 1) / (size_t)stride;
+    pf_irr_params_t p = { stride < 1 ? 1 : stride, k, max_r2, shrink2, bounce_limit };
+    size_t m = pf_irradiance_count(pf_kdtree_size(global), p.stride);
     pf_photon_t *pts = malloc((m ? m : 1) * sizeof *pts);
     if (!pts)
         return PF_ENOMEM;
+    int rc = pf_irradiance_points(global, &p, accel, threads, 0, m, pts);
+    if (rc != PF_OK) {
+        free(pts);
+        return rc;
+    }
+    *out = pf_kdtree_build(&pts, m);
+    return *out ? PF_OK : PF_ENOMEM;
+}
+
+int pf_irradiance_points(const pf_kdtree_t *global, const pf_irr_params_t *par, const pf_accel_t *accel, int threads,
+                         size_t first, size_t m, pf_photon_t *pts)
+{
+    int stride = par->stride < 1 ? 1 : par->stride;
+    int k = par->k > PF_MAX_K ? PF_MAX_K : par->k;
+    const float max_r2 = par->max_r2, shrink2 = par->shrink2;
+    const unsigned bounce_limit = par->bounce_limit;
+    if (threads < 1)
+        threads = 1;
     const pf_photon_t *ph = pf_kdtree_photons(global);
     int failed = 0;
 #pragma omp parallel num_threads(threads)
@@ -63,7 +83,7 @@ int pf_irradiance_precompute_limited(const pf_kdtree_t *global, int stride, int 
         for (size_t i = 0; i < m; i++) {
             if (!scratch || (accel && !vis.found))
                 continue;
-            const pf_photon_t *p = &ph[i * (size_t)stride];
+            const pf_photon_t *p = &ph[(first + i) * (size_t)stride];
             pf_vec3 nrm = pf_photon_normal(p);
             float r2 = 0.0f;
             int flat = 0;
@@ -80,10 +100,5 @@ int pf_irradiance_precompute_limited(const pf_kdtree_t *global, int stride, int 
         free(scratch);
         pf_pm_visible_scratch_free(&vis);
     }
-    if (failed) {
-        free(pts);
-        return PF_ENOMEM;
-    }
-    *out = pf_kdtree_build(&pts, m);
-    return *out ? PF_OK : PF_ENOMEM;
+    return failed ? PF_ENOMEM : PF_OK;
 }

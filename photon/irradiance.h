@@ -27,4 +27,24 @@ int pf_irradiance_precompute(const pf_kdtree_t *global, int stride, int k, float
 int pf_irradiance_precompute_limited(const pf_kdtree_t *global, int stride, int k, float max_r2, float shrink2,
                                      unsigned bounce_limit, const pf_accel_t *accel, int threads, pf_kdtree_t **out);
 
+/* The parameters of one precompute (those of pf_irradiance_precompute_limited). */
+typedef struct pf_irr_params {
+    int stride, k;
+    float max_r2, shrink2;
+    unsigned bounce_limit;
+} pf_irr_params_t;
+
+/* How many points a precompute over n global photons makes: ceil(n / stride). */
+size_t pf_irradiance_count(size_t n, int stride);
+
+/* Points [first, first + count) of the precompute (point i at global photon
+ * i * stride, in tree order) into out[0 .. count), before the tree is built:
+ * the same records, bit for bit, as the whole precompute holds for those
+ * indices, whatever the range and the thread count (each point's estimate
+ * is a pure function of the map, accel and the point), so ranges computed
+ * in different processes join into the same map. first + count must not
+ * pass pf_irradiance_count. 0 or PF_ENOMEM. */
+int pf_irradiance_points(const pf_kdtree_t *global, const pf_irr_params_t *p, const pf_accel_t *accel, int threads,
+                         size_t first, size_t count, pf_photon_t *out);
+
 #endif

@@ -330,9 +330,46 @@ int pf_photon_deep_irradiance(pf_photon_maps_t *maps, const pf_accel_t *accel, c
                                             &maps->irradiance_deep);
 }
 
-int pf_photon_build(const pf_scene_t *scene, const pf_accel_t *accel, const pf_settings_t *settings,
-                    uint64_t caustic_emitted, pf_photon_t **gp_p, size_t gn, pf_photon_t **cp_p, size_t cn,
-                    pf_photon_maps_t *maps, pf_photon_stats_t *stats)
+void pf_photon_irr_plan(const pf_photon_maps_t *maps, const pf_settings_t *settings, pf_irr_plan_t *out)
+{
+    size_t gn = maps->global ? pf_kdtree_size(maps->global) : 0;
+    int stride = (int)pf_irradiance_points_stride(gn, settings);
+    float shrink2 = pf_pass_shrink2(settings->pass);
+    out->main = (pf_irr_params_t){ stride, settings->global_k, maps->global_r2, shrink2,
+                                   pf_gather_bounce_limit(settings) };
+    out->deep = (pf_irr_params_t){ stride, settings->global_k, maps->global_r2, shrink2,
+                                   pf_deep_bounce_limit(settings) };
+    out->points = pf_irradiance_count(gn, stride);
+    /* as pf_photon_deep_irradiance: under a limit of 3 or more, when there are points */
+    out->has_deep = settings->path_max_depth >= 3 && out->points > 0;
+}
+
+/* The irradiance maps (and the deep one) from points that spread->points
+ * computes: the same trees as pf_irradiance_precompute_limited's and
+ * pf_photon_deep_irradiance's, since the points are the same records. */
+static int s_irr_spread(pf_photon_maps_t *maps, const pf_settings_t *settings, const pf_irr_spread_t *spread)
+{
+    pf_irr_plan_t plan;
+    pf_photon_irr_plan(maps, settings, &plan);
+    size_t m = plan.points ? plan.points : 1;
+    pf_photon_t *pts = malloc(m * sizeof *pts), *deep = plan.has_deep ? malloc(m * sizeof *deep) : NULL;
+    int rc = pts && (deep || !plan.has_deep) ? spread->points(spread->ctx, maps, &plan, pts, deep) : PF_ENOMEM;
+    if (rc == PF_OK) {
+        maps->irradiance = pf_kdtree_build(&pts, plan.points);
+        rc = maps->irradiance ? PF_OK : PF_ENOMEM;
+    }
+    if (rc == PF_OK && plan.has_deep) {
+        maps->irradiance_deep = pf_kdtree_build(&deep, plan.points);
+        rc = maps->irradiance_deep ? PF_OK : PF_ENOMEM;
+    }
+    free(pts);
+    free(deep);
+    return rc;
+}
+
+static int s_build(const pf_scene_t *scene, const pf_accel_t *accel, const pf_settings_t *settings,
+                   uint64_t caustic_emitted, pf_photon_t **gp_p, size_t gn, pf_photon_t **cp_p, size_t cn,
+                   pf_photon_maps_t *maps, pf_photon_stats_t *stats, const pf_irr_spread_t *spread)
 {
     int threads = settings->threads > 0 ? settings->threads : omp_get_num_procs();
     pf_photon_t *gp = *gp_p, *cp = *cp_p;
@@ -377,6 +414,8 @@ int pf_photon_build(const pf_scene_t *scene, const pf_accel_t *accel, const pf_s
         pf_photon_t *none = malloc(sizeof *none); /* an empty tree still owns an array */
         maps->irradiance = none ? pf_kdtree_build(&none, 0) : NULL;
         rc = maps->irradiance ? PF_OK : PF_ENOMEM;
+    } else if (spread) {
+        rc = s_irr_spread(maps, settings, spread);
     } else {
         size_t stride = pf_irradiance_points_stride(gn, settings);
         rc = pf_irradiance_precompute_limited(maps->global, (int)stride, settings->global_k, maps->global_r2,
@@ -392,6 +431,13 @@ int pf_photon_build(const pf_scene_t *scene, const pf_accel_t *accel, const pf_s
     }
     stats->irradiance_points = pf_kdtree_size(maps->irradiance);
     return PF_OK;
+}
+
+int pf_photon_build(const pf_scene_t *scene, const pf_accel_t *accel, const pf_settings_t *settings,
+                    uint64_t caustic_emitted, pf_photon_t **gp_p, size_t gn, pf_photon_t **cp_p, size_t cn,
+                    pf_photon_maps_t *maps, pf_photon_stats_t *stats)
+{
+    return s_build(scene, accel, settings, caustic_emitted, gp_p, gn, cp_p, cn, maps, stats, NULL);
 }
 
 int pf_photon_pass(const pf_scene_t *scene, const pf_accel_t *accel, const pf_lights_t *lights,
@@ -590,6 +636,13 @@ int pf_photon_merge(const pf_scene_t *scene, const pf_accel_t *accel, const pf_s
                     const pf_photon_plan_t *plan, pf_photon_batch_t *batches, pf_photon_maps_t *maps,
                     pf_photon_stats_t *stats)
 {
+    return pf_photon_merge_spread(scene, accel, settings, plan, batches, maps, stats, NULL);
+}
+
+int pf_photon_merge_spread(const pf_scene_t *scene, const pf_accel_t *accel, const pf_settings_t *settings,
+                           const pf_photon_plan_t *plan, pf_photon_batch_t *batches, pf_photon_maps_t *maps,
+                           pf_photon_stats_t *stats, const pf_irr_spread_t *spread)
+{
     uint32_t nb = plan->global_batches + plan->caustic_batches;
     size_t gn = 0, cn = 0;
     for (uint32_t b = 0; b < nb; b++) {
@@ -614,7 +667,7 @@ int pf_photon_merge(const pf_scene_t *scene, const pf_accel_t *accel, const pf_s
         batches[b].p = NULL;
         batches[b].n = 0;
     }
-    return pf_photon_build(scene, accel, settings, plan->caustic_emitted, &gp, gn, &cp, cn, maps, stats);
+    return s_build(scene, accel, settings, plan->caustic_emitted, &gp, gn, &cp, cn, maps, stats, spread);
 }
 
 /* More than PF_IRRADIANCE_MAX_POINTS points add time and memory but no

@@ -5,6 +5,7 @@
 
 #include "accel/accel.h"
 #include "light/light.h"
+#include "photon/irradiance.h"
 #include "photon/photonmap.h"
 #include "scene/scene.h"
 
@@ -109,6 +110,36 @@ int pf_photon_trace_batches(const pf_photon_tracer_t *t, uint32_t first, uint32_
 int pf_photon_merge(const pf_scene_t *scene, const pf_accel_t *accel, const pf_settings_t *settings,
                     const pf_photon_plan_t *plan, pf_photon_batch_t *batches, pf_photon_maps_t *maps,
                     pf_photon_stats_t *stats);
+
+/* The irradiance precompute of a pass over maps->global (its radius in
+ * maps->global_r2): the points' parameters for the irradiance map (main)
+ * and, with has_deep, for maps->irradiance_deep, at the same `points`
+ * points. Whoever computes a range of them (pf_irradiance_points) with
+ * these parameters makes the records the in-process pass makes. */
+typedef struct pf_irr_plan {
+    pf_irr_params_t main, deep;
+    int has_deep;
+    size_t points;
+} pf_irr_plan_t;
+void pf_photon_irr_plan(const pf_photon_maps_t *maps, const pf_settings_t *settings, pf_irr_plan_t *out);
+
+/* Someone else computes the irradiance points (the farm: its workers and
+ * its own cores): points(ctx, maps, plan, main, deep) fills
+ * main[0 .. plan->points) and, with plan->has_deep, deep[0 .. points) with
+ * the records pf_irradiance_points makes; maps holds the global and
+ * caustic trees by then. 0 or a status (the pass fails with it). */
+typedef struct pf_irr_spread {
+    int (*points)(void *ctx, const pf_photon_maps_t *maps, const pf_irr_plan_t *plan, pf_photon_t *main,
+                  pf_photon_t *deep);
+    void *ctx;
+} pf_irr_spread_t;
+
+/* pf_photon_merge with the irradiance points computed by spread (NULL:
+ * here, as pf_photon_merge): the same maps, bit for bit, when spread's
+ * points are right. */
+int pf_photon_merge_spread(const pf_scene_t *scene, const pf_accel_t *accel, const pf_settings_t *settings,
+                           const pf_photon_plan_t *plan, pf_photon_batch_t *batches, pf_photon_maps_t *maps,
+                           pf_photon_stats_t *stats, const pf_irr_spread_t *spread);
 
 /* A flag that, once non-zero (a signal handler sets it), stops a photon
  * pass under way: tracing stops within a block of photons per thread and the

@@ -34,6 +34,9 @@
  *   BLOB_PLAN   u64 hash, u64 size, u32 source_uid, str source, u64 root,
  *               u32 n, then n u64 chunk hashes to the end of the frame
  *               (n = chunks of size; root = pf_chunk_root of them)
+ *   IRR_REQ     u64 scene_hash, scene_size, maps_hash, maps_size, settings,
+ *               u32 first, u32 count
+ *   IRR_POINTS  as PHOTONS (batch: the chunk; first, rejected, indirect 0)
  *
  * Owns nothing: decoded chunk data and result pixels point into the frame.
  * Reentrant; any thread may encode or decode. */
@@ -73,6 +76,7 @@ static const char *const s_type_names[] = {
     [PF_MSG_BLOB_CHUNK] = "BLOB_CHUNK", [PF_MSG_READY] = "READY",   [PF_MSG_TILE] = "TILE",
     [PF_MSG_RESULT] = "RESULT",       [PF_MSG_JOB_END] = "JOB_END", [PF_MSG_BYE] = "BYE",
     [PF_MSG_PHOTON_REQ] = "PHOTON_REQ", [PF_MSG_PHOTONS] = "PHOTONS", [PF_MSG_BLOB_PLAN] = "BLOB_PLAN",
+    [PF_MSG_IRR_REQ] = "IRR_REQ", [PF_MSG_IRR_POINTS] = "IRR_POINTS",
 };
 
 const char *pf_msg_type_name(int type)
@@ -458,6 +462,25 @@ static int s_check(const pf_msg_t *m, char *why, size_t why_len)
                s_out_of_range(why, why_len, "count", q->count, 1, PF_PROTO_MAX_REQ_BATCHES) ||
                s_out_of_range(why, why_len, "first", q->first, 0, PF_PROTO_MAX_BATCHES - q->count);
     }
+    case PF_MSG_IRR_REQ: {
+        const pf_msg_irr_req_t *q = &m->u.irr_req;
+        return pf_settings_check(&q->settings, why, why_len) != PF_OK ||
+               s_out_of_range(why, why_len, "count", q->count, 1, PF_PROTO_MAX_REQ_IRR_CHUNKS) ||
+               s_out_of_range(why, why_len, "first", q->first, 0, PF_PROTO_MAX_IRR_CHUNKS - q->count) ||
+               s_out_of_range(why, why_len, "maps_size", q->maps_size ? 1 : 0, 1, 1);
+    }
+    case PF_MSG_IRR_POINTS: {
+        const pf_msg_photons_t *p = &m->u.photons;
+        if (s_out_of_range(why, why_len, "chunk", p->batch, 0, PF_PROTO_MAX_IRR_CHUNKS - 1) ||
+            s_out_of_range(why, why_len, "n", p->n, 1, PF_PROTO_IRR_CHUNK_POINTS))
+            return 1;
+        if (p->total != p->n || p->first || p->rejected || p->indirect) {
+            s_whyf(why, why_len, "a chunk is one message: total %" PRIu64 " must be n %" PRIu32 ", and first %" PRIu64
+                   ", rejected %" PRIu64 ", indirect %" PRIu64 " 0", p->total, p->n, p->first, p->rejected, p->indirect);
+            return 1;
+        }
+        return 0;
+    }
     case PF_MSG_PHOTONS: {
         const pf_msg_photons_t *p = &m->u.photons;
         if (s_out_of_range(why, why_len, "batch", p->batch, 0, PF_PROTO_MAX_BATCHES - 1) ||
@@ -513,11 +536,10 @@ static int s_enc_plan(pf_buf_t *out, const pf_msg_blob_plan_t *pl)
     return rc;
 }
 
-int pf_msg_encode(const pf_msg_t *msg, pf_buf_t *out)
+/* The payload rules s_check leaves out (pixels, photons, the plan's root):
+ * 0, or PF_EINVAL. */
+static int s_enc_payload_bad(const pf_msg_t *msg)
 {
-    out->len = 0;
-    if (s_check(msg, NULL, 0))
-        return PF_EINVAL;
     const pf_msg_result_t *res = &msg->u.result;
     size_t npix = 0;
     if (msg->type == PF_MSG_RESULT) {
@@ -531,7 +553,7 @@ int pf_msg_encode(const pf_msg_t *msg, pf_buf_t *out)
     if (msg->type == PF_MSG_BLOB_CHUNK && msg->u.chunk.len > 0 && !msg->u.chunk.data)
         return PF_EINVAL;
     const pf_msg_photons_t *ph = &msg->u.photons;
-    if (msg->type == PF_MSG_PHOTONS) {
+    if (msg->type == PF_MSG_PHOTONS || msg->type == PF_MSG_IRR_POINTS) {
         if (ph->n > 0 && !ph->photons)
             return PF_EINVAL;
         for (uint32_t i = 0; i < ph->n; i++)
@@ -544,7 +566,18 @@ int pf_msg_encode(const pf_msg_t *msg, pf_buf_t *out)
     const pf_msg_blob_plan_t *pl = &msg->u.plan;
     if (msg->type == PF_MSG_BLOB_PLAN && (!pl->leaves || pf_chunk_root(pl->hash, pl->size, pl->leaves, pl->n) != pl->root))
         return PF_EINVAL;
+    return 0;
+}
 
+int pf_msg_encode(const pf_msg_t *msg, pf_buf_t *out)
+{
+    out->len = 0;
+    if (s_check(msg, NULL, 0) || s_enc_payload_bad(msg))
+        return PF_EINVAL;
+    const pf_msg_result_t *res = &msg->u.result;
+    size_t npix = msg->type == PF_MSG_RESULT ? (size_t)res->w * res->h * 3 : 0;
+    const pf_msg_photons_t *ph = &msg->u.photons;
+    const pf_msg_blob_plan_t *pl = &msg->u.plan;
     int rc = 0;
     W(pf_wr_u32(out, PF_PROTO_MAGIC));
     W(pf_wr_u16(out, PF_PROTO_VERSION));
@@ -633,7 +666,17 @@ int pf_msg_encode(const pf_msg_t *msg, pf_buf_t *out)
         W(pf_wr_u32(out, msg->u.photon_req.first));
         W(pf_wr_u32(out, msg->u.photon_req.count));
         break;
+    case PF_MSG_IRR_REQ:
+        W(pf_wr_u64(out, msg->u.irr_req.scene_hash));
+        W(pf_wr_u64(out, msg->u.irr_req.scene_size));
+        W(pf_wr_u64(out, msg->u.irr_req.maps_hash));
+        W(pf_wr_u64(out, msg->u.irr_req.maps_size));
+        W(pf_wr_settings(out, &msg->u.irr_req.settings));
+        W(pf_wr_u32(out, msg->u.irr_req.first));
+        W(pf_wr_u32(out, msg->u.irr_req.count));
+        break;
     case PF_MSG_PHOTONS:
+    case PF_MSG_IRR_POINTS:
         W(pf_wr_u32(out, ph->batch));
         W(pf_wr_u64(out, ph->total));
         W(pf_wr_u64(out, ph->first));
@@ -859,7 +902,17 @@ static void s_dec_body(s_dec_t *d, pf_msg_t *m)
         m->u.photon_req.first = s_u32(d, "first");
         m->u.photon_req.count = s_u32(d, "count");
         break;
+    case PF_MSG_IRR_REQ:
+        m->u.irr_req.scene_hash = s_u64(d, "scene_hash");
+        m->u.irr_req.scene_size = s_u64(d, "scene_size");
+        m->u.irr_req.maps_hash = s_u64(d, "maps_hash");
+        m->u.irr_req.maps_size = s_u64(d, "maps_size");
+        s_dec_settings(d, &m->u.irr_req.settings);
+        m->u.irr_req.first = s_u32(d, "first");
+        m->u.irr_req.count = s_u32(d, "count");
+        break;
     case PF_MSG_PHOTONS:
+    case PF_MSG_IRR_POINTS:
         s_dec_photons(d, &m->u.photons);
         break;
     case PF_MSG_BLOB_PLAN:

@@ -37,6 +37,11 @@
  *   each checked against its chunk hash; a bad chunk, or a source silent
  *   for a few seconds, and it fetches the rest from the coordinator. A
  *   BLOB_PLAN with source "" (its source died) says the same.
+ *   Irradiance spread over the workers (7; before the JOB of that pass):
+ *           ◀────────── IRR_REQ(job, scene blob, map blob without irradiance,
+ *                               settings, chunks first..+count)
+ *   worker  BLOB_REQ for the blobs it does not hold
+ *   worker  IRR_POINTS(job, chunk) ...       each chunk's irradiance point records
  *   both    HEARTBEAT about once a second (any message counts as alive)
  *   either  BYE                              leaving (worker) / shutting down (coordinator)
  */
@@ -50,9 +55,9 @@
 #include "scene/scene.h"
 
 #define PF_PROTO_MAGIC 0x4d524650u /* "PFRM" read as little-endian bytes 'P','F','R','M' */
-#define PF_PROTO_VERSION 6 /* 3: settings carry the progressive pass; 4: and the pixel filter; 5: PHOTON_REQ, PHOTONS;
+#define PF_PROTO_VERSION 7 /* 3: settings carry the progressive pass; 4: and the pixel filter; 5: PHOTON_REQ, PHOTONS;
                               6: HELLO carries peer_port, BLOB_PLAN (fan-out),
-                              settings.path_max_depth */
+                              settings.path_max_depth; 7: IRR_REQ, IRR_POINTS */
 #define PF_PROTO_HEADER_SIZE 16
 #define PF_PROTO_MAX_STRING PF_WIRE_MAX_STRING
 #define PF_PROTO_CHUNK_SIZE (1u << 20)            /* blob chunk payload */
@@ -65,6 +70,9 @@
 #define PF_PROTO_MAX_BATCH_PHOTONS (UINT64_C(1) << 32) /* photons one batch may store, at most */
 #define PF_PROTO_MAX_PLAN_CHUNKS (PF_PROTO_CHUNK_SIZE / 8u) /* chunk hashes one BLOB_PLAN carries (a 128 GiB blob) */
 #define PF_PROTO_MAX_SOURCE 128u                /* bytes of a BLOB_PLAN source endpoint, NUL included */
+#define PF_PROTO_IRR_CHUNK_POINTS 4096u          /* irradiance points a chunk holds (the last of a map: fewer) */
+#define PF_PROTO_MAX_IRR_CHUNKS (1u << 20)       /* irradiance chunks a pass has at most (both maps) */
+#define PF_PROTO_MAX_REQ_IRR_CHUNKS 64u          /* chunks one IRR_REQ asks for at most */
 
 typedef enum {
     PF_MSG_HELLO = 1,
@@ -82,7 +90,9 @@ typedef enum {
     PF_MSG_PHOTON_REQ = 13,
     PF_MSG_PHOTONS = 14,
     PF_MSG_BLOB_PLAN = 15,
-    PF_MSG_MAX_TYPE = 15
+    PF_MSG_IRR_REQ = 16,
+    PF_MSG_IRR_POINTS = 17,
+    PF_MSG_MAX_TYPE = 17
 } pf_msg_type;
 
 /* The build fingerprint a worker must share with the coordinator. */
@@ -203,6 +213,22 @@ typedef struct pf_msg_blob_plan {
     const uint64_t *leaves;  /* encode: the n leaves to send */
 } pf_msg_blob_plan_t;
 
+/* Compute irradiance chunks [first, first + count) of the pass the
+ * settings describe over the scene blob and the map blob named (a map blob
+ * whose irradiance map is empty: pf_photon_irr_plan gives the points).
+ * Chunk c < C (C: chunks of one map, PF_PROTO_IRR_CHUNK_POINTS points each)
+ * is points [c * 4096, ...) of the irradiance map; chunk C + c the same
+ * points of the deep one (photonmap.h). The answer is IRR_POINTS, whose
+ * body is PHOTONS' (pf_msg_photons_t): batch = the chunk, total = n = its
+ * points (1..PF_PROTO_IRR_CHUNK_POINTS), first = rejected = indirect = 0;
+ * each record a pf_photon_t as the precompute makes it. */
+typedef struct pf_msg_irr_req {
+    uint64_t scene_hash, scene_size;
+    uint64_t maps_hash, maps_size;   /* maps_size >= 1 */
+    pf_settings_t settings;
+    uint32_t first, count;   /* count 1..PF_PROTO_MAX_REQ_IRR_CHUNKS; first + count <= PF_PROTO_MAX_IRR_CHUNKS */
+} pf_msg_irr_req_t;
+
 typedef struct pf_msg_bye {
     char reason[256];
 } pf_msg_bye_t;
@@ -225,8 +251,9 @@ typedef struct pf_msg {
         pf_msg_result_t result;
         pf_msg_bye_t bye;
         pf_msg_photon_req_t photon_req;
-        pf_msg_photons_t photons;
+        pf_msg_photons_t photons; /* PHOTONS and IRR_POINTS */
         pf_msg_blob_plan_t plan;
+        pf_msg_irr_req_t irr_req;
     } u;
 } pf_msg_t;
 

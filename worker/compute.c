@@ -62,6 +62,8 @@ void pf_w_work_free(s_work *it)
             free(it->ph_out[k].p);
         free(it->ph_out);
     }
+    free(it->irr_pts);
+    free(it->irr_n);
     free(it->rgb);
     pf_w_job_release(it->job);
     free(it);
@@ -157,12 +159,18 @@ static void *s_compute_main(void *arg)
         pthread_mutex_unlock(&q->mu);
 
         if (!atomic_load(&it->job->cancelled)) {
-            if (it->kind == S_WORK_BUILD)
+            if (it->kind == S_WORK_BUILD) {
+                /* A JOB: the photon work is over; its global map goes */
+                pf_photon_maps_free(&w->irr_maps);
+                w->irr_maps_hash = 0;
                 s_compute_build(w, it);
-            else if (it->kind == S_WORK_PHOTONS)
+            } else if (it->kind == S_WORK_PHOTONS) {
                 pf_w_compute_photons(w, it);
-            else
+            } else if (it->kind == S_WORK_IRR) {
+                pf_w_compute_irr(w, it);
+            } else {
                 s_compute_tile(w, it);
+            }
         }
 
         pthread_mutex_lock(&q->mu);
@@ -291,6 +299,8 @@ void pf_w_compute_stop(s_worker *w)
     w->q.todo = w->q.done = NULL;
     pf_frame_close(&w->ph_frame); /* the compute thread's; it is joined */
     w->ph_frame_ok = 0;
+    pf_photon_maps_free(&w->irr_maps);
+    w->irr_maps_hash = 0;
 }
 
 void pf_w_queue_destroy(s_queue *q)

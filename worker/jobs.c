@@ -95,7 +95,8 @@ static void s_blob_remove(s_worker *w, size_t i)
 static int s_blob_needed(const s_worker *w, const s_blob *b)
 {
     const s_job *pj = w->pjob;
-    if (pj && b->hash == pj->desc.scene_hash && b->size == pj->desc.scene_size)
+    if (pj && ((b->hash == pj->desc.scene_hash && b->size == pj->desc.scene_size) ||
+               (b->hash == pj->desc.maps_hash && b->size == pj->desc.maps_size)))
         return 1;
     const s_job *j = w->job;
     if (!j || j->state == S_JOB_FAILED)
@@ -554,7 +555,9 @@ void pf_w_drain_done(s_worker *w)
         list = it->next;
         s_job *j = it->job;
         int current = j == w->job && !atomic_load(&j->cancelled);
-        if (it->kind == S_WORK_PHOTONS) {
+        if (it->kind == S_WORK_IRR) {
+            pf_w_irr_sent(w, it);
+        } else if (it->kind == S_WORK_PHOTONS) {
             pf_w_photons_sent(w, it);
         } else if (it->kind == S_WORK_BUILD) {
             s_build_forget(w, it);

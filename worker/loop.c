@@ -319,6 +319,7 @@ static void s_on_message(s_worker *w, const uint8_t *frame, size_t len)
     case PF_MSG_BLOB_PLAN: pf_w_on_plan(w, &m); break;
     case PF_MSG_TILE: pf_w_on_tile(w, &m); break;
     case PF_MSG_PHOTON_REQ: pf_w_on_photon_req(w, &m); break;
+    case PF_MSG_IRR_REQ: pf_w_on_irr_req(w, &m); break;
     case PF_MSG_JOB_END:
         if (w->pjob && w->pjob->id == m.job && (!w->job || w->job->id != m.job))
             pf_w_photons_drop(w, "JOB_END");

@@ -58,6 +58,7 @@ void pf_w_photons_drop(s_worker *w, const char *why)
     atomic_store(&j->cancelled, 1);
     w->pjob = NULL;
     w->nph_wait = 0;
+    w->nirr_wait = 0;
     s_work *drop = pf_w_unqueue_job(w, j);
     while (drop) {
         s_work *next = drop->next;
@@ -70,6 +71,7 @@ void pf_w_photons_drop(s_worker *w, const char *why)
 
 void pf_w_photons_advance(s_worker *w)
 {
+    pf_w_irr_advance(w);
     s_job *j = w->pjob;
     if (!j || !w->nph_wait)
         return;
@@ -81,28 +83,35 @@ void pf_w_photons_advance(s_worker *w)
     w->nph_wait = 0;
 }
 
+s_job *pf_w_photons_job(s_worker *w, uint64_t job, uint64_t scene_hash, uint64_t scene_size,
+                        const pf_settings_t *settings, const char *what)
+{
+    s_job *j = w->pjob;
+    if (j && j->id == job && j->desc.scene_hash == scene_hash && j->desc.scene_size == scene_size &&
+        pf_settings_hash(&j->desc.settings) == pf_settings_hash(settings))
+        return j;
+    pf_w_photons_drop(w, "a new photon pass");
+    j = calloc(1, sizeof *j);
+    if (!j) {
+        pf_w_log(w, PF_LOG_ERROR, "job %" PRIu64 ": out of memory for the photon pass", job);
+        return NULL;
+    }
+    j->id = job;
+    j->desc.scene_hash = scene_hash;
+    j->desc.scene_size = scene_size;
+    j->desc.settings = *settings;
+    j->refs = 1;
+    atomic_init(&j->cancelled, 0);
+    w->pjob = j;
+    pf_w_log(w, PF_LOG_INFO, "job %" PRIu64 ": %s (scene %016" PRIx64 ")", j->id, what, scene_hash);
+    return j;
+}
+
 void pf_w_on_photon_req(s_worker *w, const pf_msg_t *m)
 {
     const pf_msg_photon_req_t *q = &m->u.photon_req;
-    s_job *j = w->pjob;
-    if (!j || j->id != m->job || j->desc.scene_hash != q->scene_hash || j->desc.scene_size != q->scene_size ||
-        pf_settings_hash(&j->desc.settings) != pf_settings_hash(&q->settings)) {
-        pf_w_photons_drop(w, "a new photon pass");
-        j = calloc(1, sizeof *j);
-        if (!j) {
-            pf_w_log(w, PF_LOG_ERROR, "job %" PRIu64 ": out of memory for the photon pass", m->job);
-            return;
-        }
-        j->id = m->job;
-        j->desc.scene_hash = q->scene_hash;
-        j->desc.scene_size = q->scene_size;
-        j->desc.settings = q->settings;
-        j->refs = 1;
-        atomic_init(&j->cancelled, 0);
-        w->pjob = j;
-        pf_w_log(w, PF_LOG_INFO, "job %" PRIu64 ": tracing photon batches (scene %016" PRIx64 ")", j->id,
-                 q->scene_hash);
-    }
+    if (!pf_w_photons_job(w, m->job, q->scene_hash, q->scene_size, &q->settings, "tracing photon batches"))
+        return;
     s_blob *sb = pf_w_blob_get(w, q->scene_hash, q->scene_size, "scene");
     if (!sb) {
         pf_w_photons_drop(w, "cannot fetch the scene blob");

@@ -29,6 +29,7 @@
 #include "base/log.h"
 #include "base/wire.h"
 #include "proto/messages.h"
+#include "photon/photonmap.h"
 #include "render/render.h"
 
 /* ---- the pieces of state ----
@@ -111,7 +112,7 @@ typedef struct s_job {
     int refs;            /* the worker's current-job pointer and each work item; main thread only */
 } s_job;
 
-typedef enum { S_WORK_BUILD, S_WORK_TILE, S_WORK_PHOTONS } s_work_kind;
+typedef enum { S_WORK_BUILD, S_WORK_TILE, S_WORK_PHOTONS, S_WORK_IRR } s_work_kind;
 
 typedef struct s_work {
     struct s_work *next;
@@ -132,6 +133,11 @@ typedef struct s_work {
     uint32_t ph_first, ph_count;
     struct pf_photon_batch *ph_out;
     double ph_s; /* the trace's wall time */
+    /* S_WORK_IRR (scene_blob and maps_blob pinned): irradiance chunks
+     * [ph_first, ph_first + ph_count) into irr_pts (chunk k at k *
+     * PF_PROTO_IRR_CHUNK_POINTS, irr_n[k] points) */
+    pf_photon_t *irr_pts;
+    uint32_t *irr_n;
 } s_work;
 
 /* The compute thread's in and out lists. */
@@ -196,6 +202,13 @@ typedef struct s_worker {
     pf_frame_t ph_frame;
     uint64_t ph_frame_hash;
     int ph_frame_ok;
+    /* irr.c: the chunk ranges waiting for their blobs; the compute
+     * thread's maps (the global map of the irradiance's map blob, read
+     * once per hash, touched only by the compute thread). */
+    pf_msg_irr_req_t irr_wait[4];
+    int nirr_wait;
+    pf_photon_maps_t irr_maps;
+    uint64_t irr_maps_hash;
 
     s_queue q;
     pthread_t compute;
@@ -289,6 +302,22 @@ void pf_w_compute_photons(s_worker *w, s_work *it);
  * lights; no maps) from it->scene_blob, built only when the scene differs
  * from the last one built. 0, or -1 with it->error set. */
 int pf_w_scene_frame(s_worker *w, s_work *it);
+/* The photon job for (job, scene blob, settings): the current one when
+ * they match, else a new one (the old one dropped; `what` it is for goes
+ * to the log); NULL when memory is short. */
+s_job *pf_w_photons_job(s_worker *w, uint64_t job, uint64_t scene_hash, uint64_t scene_size,
+                        const pf_settings_t *settings, const char *what);
+
+/* ---- irr.c: the irradiance chunks of the photon job ---- */
+
+/* An IRR_REQ: its chunks computed once the scene and map blobs are here. */
+void pf_w_on_irr_req(s_worker *w, const pf_msg_t *m);
+/* A blob completed: chunks waiting for it go to the compute thread. */
+void pf_w_irr_advance(s_worker *w);
+/* Compute thread: an IRR item's chunks. */
+void pf_w_compute_irr(s_worker *w, s_work *it);
+/* An IRR item came back: its chunks are sent (IRR_POINTS). */
+void pf_w_irr_sent(s_worker *w, s_work *it);
 
 /* ---- compute.c: the compute thread, its queue and the work items ---- */
 

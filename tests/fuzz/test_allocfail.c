@@ -503,7 +503,13 @@ int main(void)
             m.u.photon_req.settings = pf_settings_default();
             break;
         case PF_MSG_PHOTONS:
+        case PF_MSG_IRR_POINTS:
             m.u.photons = (pf_msg_photons_t){ .batch = 1, .total = 2, .first = 0, .n = 2, .photons = photons };
+            break;
+        case PF_MSG_IRR_REQ:
+            m.u.irr_req = (pf_msg_irr_req_t){ .scene_hash = 7, .scene_size = 100, .maps_hash = 8, .maps_size = 200,
+                                              .first = 2, .count = 3 };
+            m.u.irr_req.settings = pf_settings_default();
             break;
         case PF_MSG_BLOB_PLAN: {
             static const uint64_t leaves[2] = { 11, 22 };

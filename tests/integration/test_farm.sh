@@ -39,7 +39,8 @@
 #     two cluster workers trace photon batches, the image is the in-process
 #     one's bit for bit and the log says the workers traced batches; then
 #     one of them is killed -9 while it traces, and the image is still the
-#     in-process one's.
+#     in-process one's; both times the workers compute irradiance chunks
+#     too (the log's "irradiance spread" line).
 #
 # Every wait is bounded (poll loops with deadlines, `timeout`), every process
 # the script starts is recorded and killed (kill -9) on exit, and workers carry
@@ -181,8 +182,10 @@ BIG=(--size 192x192 --spp 25 --photons 50000 --caustic-photons 50000 --gather 8)
 # Four progressive passes of a few seconds in all.
 PROG=(--size 128x128 --spp 6 --photons 30000 --caustic-photons 30000 --gather 4 --passes 4)
 FARM=(--tile 16 --heartbeat-ms 200)
-# A photon pass of several seconds before a tiny image (glass: caustic batches too).
-PHOT=(--size 32x32 --spp 1 --photons 1500000 --caustic-photons 300000 --gather 4)
+# A photon pass of several seconds before a tiny image (glass: caustic batches too;
+# k 300: irradiance estimates long enough that workers, which fetch the global
+# map first, take chunks before the coordinator has done them all).
+PHOT=(--size 32x32 --spp 1 --photons 1500000 --caustic-photons 300000 --gather 4 --global-k 300)
 
 # coordinator NAME SCENE PORT SETTINGS_VAR [extra options...]: starts a cluster
 # coordinator on tcp://127.0.0.1:PORT writing $T/NAME.pfm; pid in $LASTPID.
@@ -704,7 +707,9 @@ t11() {
 photon_test() {
     local n=$1 kill=$2 port coord wa wb
     port=$(free_port)
-    coordinator "${n}_coord" "$SPHERES" "$port" PHOT
+    # one thread here: the workers, which fetch the map blob first, still
+    # find irradiance chunks free (the images do not depend on threads)
+    coordinator "${n}_coord" "$SPHERES" "$port" PHOT --threads 1
     coord=$LASTPID
     worker "${n}_a" "$port" --exit-on-bye
     wa=$LASTPID
@@ -723,14 +728,19 @@ photon_test() {
     wait_exit "$coord" 120
     if completed "12: the render with the photon pass on the workers completes (kill $kill)" "$T/${n}_coord.err"; then
         check "12: the image is bit-identical to in-process (kill $kill)" same "$T/${n}_coord.pfm" "$T/ref_phot.pfm"
-        local remote
-        remote=$(grep -oE '[0-9]+ on the workers' "$T/${n}_coord.err" | tail -n 1 | grep -oE '^[0-9]+')
+        local remote irr
+        remote=$(grep -E 'summary: photon pass spread' "$T/${n}_coord.err" | grep -oE '[0-9]+ on the workers' |
+            grep -oE '^[0-9]+')
         check "12: the log says the workers traced photon batches (${remote:-none})" gt "${remote:-0}" 0
+        irr=$(grep -E 'summary: irradiance spread' "$T/${n}_coord.err" | grep -oE '[0-9]+ on the workers' |
+            grep -oE '^[0-9]+')
+        check "12: the log says the workers computed irradiance chunks (${irr:-none})" gt "${irr:-0}" 0
         if [ "$kill" = 1 ]; then
             check "12: the log declares the killed worker dead" logged "$T/${n}_coord.err" "${n}_b.*(dead|lost|silent)"
             check "12: ... and its photon batches went back" logged "$T/${n}_coord.err" "${n}_b.*photon batches"
         fi
         note "12: $(grep -E 'photon pass spread' "$T/${n}_coord.err" | sed 's/.*summary: //')"
+        note "12: $(grep -E 'irradiance spread' "$T/${n}_coord.err" | sed 's/.*summary: //')"
     fi
     stop "$wa" "$wb"
 }

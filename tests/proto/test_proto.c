@@ -62,6 +62,7 @@ static float s_pixels[3 * 2 * 3];
 static uint8_t s_chunk_data[100];
 
 static pf_msg_photon_t s_photons[3];
+#include "irr_sample.h"
 static uint64_t s_leaves[3];
 
 static void s_sample(int type, pf_msg_t *m)
@@ -183,6 +184,7 @@ static void s_sample(int type, pf_msg_t *m)
         p->root = pf_chunk_root(p->hash, p->size, s_leaves, 3);
         break;
     }
+    default: s_irr_sample(type, m, s_photons); break; /* irr_sample.h */
     }
 }
 
@@ -315,8 +317,8 @@ static const char *s_diff(const pf_msg_t *a, const pf_msg_t *b)
                 return "plan leaf";
         return NULL;
     }
+    default: return s_irr_diff(a, b);
     }
-    return "unknown type";
 }
 
 /* Re-encodes a decoded message (RESULT pixels through pf_msg_result_pixels). */
@@ -332,7 +334,7 @@ static int s_reencode(const pf_msg_t *m, pf_buf_t *out)
         free(l);
         return rc;
     }
-    if (m->type == PF_MSG_PHOTONS) {
+    if (m->type == PF_MSG_PHOTONS || m->type == PF_MSG_IRR_POINTS) {
         pf_msg_t c = *m;
         pf_msg_photon_t *q = malloc((m->u.photons.n + 1) * sizeof *q);
         for (uint32_t i = 0; i < m->u.photons.n; i++)
@@ -638,7 +640,7 @@ static void s_corrupt_headers(void)
          * count that does not fit the tile. */
         s_expect(c, b.len + 1, PF_EPARSE,
                  t == PF_MSG_RESULT    ? "bytes of pixels"
-                 : t == PF_MSG_PHOTONS   ? "bytes of photons"
+                 : t == PF_MSG_PHOTONS || t == PF_MSG_IRR_POINTS ? "bytes of photons"
                  : t == PF_MSG_BLOB_PLAN ? "bytes of chunk hashes"
                                          : "trailing",
                  "trailing byte");

@@ -141,7 +141,7 @@ static void s_test(const pf_scene_t *scene)
           (unsigned long long)st.stolen, (unsigned long long)st.expired);
     CHECK(s_feed(q, t, 1, 7, 5000, UINT64_MAX) == PF_PHQ_STALE, "a result after the photon thread traced it is stale");
     memset(&st_q, 0, sizeof st_q);
-    CHECK(pf_phq_merge(q, scene, fr.accel, &s, &mq, &st_q) == PF_OK, "table merge");
+    CHECK(pf_phq_merge(q, scene, fr.accel, &s, &mq, &st_q, NULL) == PF_OK, "table merge");
     CHECK(s_same_maps(&ref, &mq), "the table's maps are the in-process ones, bit for bit");
     pf_phq_free(&q);
 
@@ -170,7 +170,7 @@ static void s_test(const pf_scene_t *scene)
           (unsigned long long)st.mismatches, (unsigned long long)st.discarded, st.remote, st.local);
     CHECK(pf_phq_lease(q, 8, 1, 0.0, &first) == 0, "the liar is barred");
     memset(&st_q, 0, sizeof st_q);
-    CHECK(pf_phq_merge(q, scene, fr.accel, &s, &mc, &st_q) == PF_OK, "checked table merge");
+    CHECK(pf_phq_merge(q, scene, fr.accel, &s, &mc, &st_q, NULL) == PF_OK, "checked table merge");
     CHECK(s_same_maps(&ref, &mc), "after the lie the maps are the in-process ones, bit for bit");
     pf_photon_maps_free(&mc);
     pf_phq_free(&q);
@@ -188,7 +188,7 @@ static void s_test(const pf_scene_t *scene)
     CHECK(st.mismatches == 1 && st.discarded == 2 && st.remote == 0 && st.local == nb,
           "stats: %llu mismatches, %llu discarded, %u remote", (unsigned long long)st.mismatches,
           (unsigned long long)st.discarded, st.remote);
-    CHECK(pf_phq_merge(q, scene, fr.accel, &s, &mc, &st_q) == PF_OK && s_same_maps(&ref, &mc),
+    CHECK(pf_phq_merge(q, scene, fr.accel, &s, &mc, &st_q, NULL) == PF_OK && s_same_maps(&ref, &mc),
           "the maps are the in-process ones");
     pf_photon_maps_free(&mc);
     pf_phq_free(&q);
