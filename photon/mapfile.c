@@ -7,7 +7,7 @@
  * photon and its split axis, and leaves the kd ordering to pf_kdtree_from_layout.
  *
  * The content hash covers the header fields before it as well as the body
- * (pf_hash_bytes over header bytes 0..147, continued over the body), so a
+ * (pf_hash_bytes over header bytes 0..179, continued over the body), so a
  * flipped emitted count or radius that is still in range is caught too.
  *
  * An empty map (count 0) is legal: a scene without mirror or glass has an
@@ -28,12 +28,13 @@
 #include "base/wire.h"
 
 #define S_WHERE "photon-map blob"
-#define S_HASH_OFFSET 148                 /* the content hash's place in the header */
-#define S_HEADER (S_HASH_OFFSET + 8)      /* 156 bytes */
+#define S_MAPS 4                          /* global, caustic, irradiance, deep irradiance */
+#define S_HASH_OFFSET 180                 /* the content hash's place in the header */
+#define S_HEADER (S_HASH_OFFSET + 8)      /* 188 bytes */
 #define S_RECORD 32                       /* a photon on the wire, its split axis included */
 #define S_MAX_COUNT (((uint64_t)1 << 31) - 1) /* the kd-tree's limit */
 
-static const char *const s_map_names[3] = { "global", "caustic", "irradiance" };
+static const char *const s_map_names[S_MAPS] = { "global", "caustic", "irradiance", "deep irradiance" };
 
 /* ---- settings hash ---- */
 
@@ -90,7 +91,7 @@ uint64_t pf_settings_hash(const pf_settings_t *s)
 int pf_mapfile_write(const pf_photon_maps_t *maps, uint64_t scene_hash, uint64_t settings_hash, pf_buf_t *out)
 {
     out->len = 0;
-    const pf_kdtree_t *trees[3] = { maps->global, maps->caustic, maps->irradiance };
+    const pf_kdtree_t *trees[S_MAPS] = { maps->global, maps->caustic, maps->irradiance, maps->irradiance_deep };
     int rc = 0;
     W(pf_wr_u32(out, PF_MAPFILE_MAGIC));
     W(pf_wr_u16(out, PF_MAPFILE_VERSION));
@@ -102,7 +103,7 @@ int pf_mapfile_write(const pf_photon_maps_t *maps, uint64_t scene_hash, uint64_t
     W(pf_wr_f32(out, maps->global_r2));
     W(pf_wr_f32(out, maps->caustic_r2));
     W(pf_wr_f32(out, maps->irradiance_r2));
-    for (int m = 0; m < 3; m++) {
+    for (int m = 0; m < S_MAPS; m++) {
         /* A missing tree is written as an empty one. */
         size_t n = trees[m] ? pf_kdtree_size(trees[m]) : 0;
         pf_vec3 lo = pf_v3s(0.0f), hi = pf_v3s(0.0f);
@@ -117,7 +118,7 @@ int pf_mapfile_write(const pf_photon_maps_t *maps, uint64_t scene_hash, uint64_t
         W(pf_wr_f32(out, hi.z));
     }
     W(pf_wr_u64(out, 0)); /* the content hash, filled in below */
-    for (int m = 0; m < 3 && rc == 0; m++) {
+    for (int m = 0; m < S_MAPS && rc == 0; m++) {
         size_t n = trees[m] ? pf_kdtree_size(trees[m]) : 0;
         const pf_photon_t *ph = n ? pf_kdtree_photons(trees[m]) : NULL;
         for (size_t i = 0; i < n && rc == 0; i++) {
@@ -266,8 +267,8 @@ int pf_mapfile_read(const uint8_t *data, size_t len, uint64_t expect_scene, uint
         if (!isfinite(radii[k]) || !(radii[k] > 0.0f))
             return s_fail(err, PF_EPARSE, "%s %g must be finite and > 0", radius_names[k], (double)radii[k]);
     }
-    s_entry_t e[3];
-    for (int m = 0; m < 3; m++) {
+    s_entry_t e[S_MAPS];
+    for (int m = 0; m < S_MAPS; m++) {
         const char *name = s_map_names[m];
         e[m].count = pf_rd_u64(&r);
         for (int k = 0; k < 3; k++)
@@ -287,12 +288,12 @@ int pf_mapfile_read(const uint8_t *data, size_t len, uint64_t expect_scene, uint
     }
     /* The counts must account for the body exactly; each is below 2^31, so
      * the sum cannot overflow. Checked before anything is allocated. */
-    uint64_t need = (e[0].count + e[1].count + e[2].count) * S_RECORD;
+    uint64_t need = (e[0].count + e[1].count + e[2].count + e[3].count) * S_RECORD;
     if (need != len - S_HEADER)
         return s_fail(err, PF_EPARSE,
-                      "the counts (global %" PRIu64 ", caustic %" PRIu64 ", irradiance %" PRIu64 ") need %" PRIu64
-                      " bytes after the header, but the blob has %zu",
-                      e[0].count, e[1].count, e[2].count, need, len - S_HEADER);
+                      "the counts (global %" PRIu64 ", caustic %" PRIu64 ", irradiance %" PRIu64
+                      ", deep irradiance %" PRIu64 ") need %" PRIu64 " bytes after the header, but the blob has %zu",
+                      e[0].count, e[1].count, e[2].count, e[3].count, need, len - S_HEADER);
     uint64_t stated = pf_rd_u64(&r);
     PF_CHECK(pf_rd_ok(&r) && r.left == len - S_HEADER);
     uint64_t h = pf_hash_bytes(PF_HASH_INIT, data, S_HASH_OFFSET);
@@ -301,21 +302,26 @@ int pf_mapfile_read(const uint8_t *data, size_t len, uint64_t expect_scene, uint
         return s_fail(err, PF_EPARSE, "content hash %016" PRIx64 " does not match the header and body (%016" PRIx64
                       "): the blob is corrupt", stated, h);
 
-    pf_kdtree_t *trees[3] = { NULL, NULL, NULL };
+    pf_kdtree_t *trees[S_MAPS] = { NULL, NULL, NULL, NULL };
     const uint8_t *body = data + S_HEADER;
     int rc = PF_OK;
-    for (int m = 0; m < 3 && rc == PF_OK; m++) {
+    for (int m = 0; m < S_MAPS && rc == PF_OK; m++) {
         rc = s_read_map(m, &e[m], body, &trees[m], err);
         body += (size_t)e[m].count * S_RECORD;
     }
     if (rc != PF_OK) {
-        for (int m = 0; m < 3; m++)
+        for (int m = 0; m < S_MAPS; m++)
             pf_kdtree_destroy(&trees[m]);
         return rc;
     }
     maps->global = trees[0];
     maps->caustic = trees[1];
     maps->irradiance = trees[2];
+    /* The deep gathers' points: none (NULL) when the blob has none, as when
+     * a frame's own photon pass derives none (no path limit of 3 or more). */
+    if (e[3].count == 0)
+        pf_kdtree_destroy(&trees[3]);
+    maps->irradiance_deep = trees[3];
     maps->global_emitted = global_emitted;
     maps->caustic_emitted = caustic_emitted;
     maps->global_r2 = radii[0];

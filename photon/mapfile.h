@@ -6,8 +6,11 @@
  *           u64 scene hash, u64 settings hash,
  *           u64 global_emitted, u64 caustic_emitted,
  *           f32 global_r2, caustic_r2, irradiance_r2,
- *           3 x { u64 count, f32 lo[3], f32 hi[3] }   (global, caustic, irradiance;
- *                                                      an empty map's bounds are zeros)
+ *           4 x { u64 count, f32 lo[3], f32 hi[3] }   (global, caustic, irradiance,
+ *                                                      deep irradiance (photonmap.h
+ *                                                      irradiance_deep; count 0 when
+ *                                                      there is none); an empty map's
+ *                                                      bounds are zeros)
  *           u64 content hash: pf_hash_bytes over the header bytes before it,
  *               continued over everything after the header
  *   body:   for each map: count photons (pos 3 f32, power 3 f32, dir u32,
@@ -30,13 +33,14 @@
 #define PF_MAPFILE_MAGIC 0x50414d46u /* "FMAP" */
 /* 2: the split axes moved from a byte array after the photons into the
  * photons' normal field. 3: a photon's dir holds 12+12 direction bits and
- * its bounce count (photon.h). */
-#define PF_MAPFILE_VERSION 3
+ * its bounce count (photon.h). 4: the deep gathers' irradiance points
+ * travel as a fourth map (workers derived them, each a whole precompute). */
+#define PF_MAPFILE_VERSION 4
 
 /* Serializes maps into out (reset first). 0 or PF_ENOMEM. */
 int pf_mapfile_write(const pf_photon_maps_t *maps, uint64_t scene_hash, uint64_t settings_hash, pf_buf_t *out);
 
-/* Validates and rebuilds maps (all three trees) from a blob. expect_scene and
+/* Validates and rebuilds maps (all four trees; the deep irradiance NULL when empty) from a blob. expect_scene and
  * expect_settings are the hashes the job names (0 skips that check). 0, or
  * PF_EPARSE / PF_EMISMATCH / PF_ENOMEM with err naming the field. */
 int pf_mapfile_read(const uint8_t *data, size_t len, uint64_t expect_scene, uint64_t expect_settings,

@@ -101,8 +101,10 @@ int pf_frame_read_maps(pf_frame_t *f, const uint8_t *maps_blob, size_t maps_len,
     int rc = pf_mapfile_read(maps_blob, maps_len, scene_hash, pf_settings_hash(settings), &f->maps, &why);
     if (rc != PF_OK)
         return pf_error_set(err, rc, NULL, 0, "photon-map blob %016" PRIx64 " rejected: %s", maps_hash, why.msg);
-    /* the deep gathers' points, which the blob leaves to the renderer */
-    if (pf_photon_deep_irradiance(&f->maps, f->accel, settings, settings->threads) != PF_OK) {
+    /* the deep gathers' points: from the blob, or derived here when it has
+     * none (a blob of only the maps, as the irradiance's own) */
+    if (!f->maps.irradiance_deep &&
+        pf_photon_deep_irradiance(&f->maps, f->accel, settings, settings->threads) != PF_OK) {
         pf_frame_drop_maps(f);
         return pf_error_set(err, PF_ENOMEM, NULL, 0, "out of memory for the deep gathers' irradiance points");
     }

@@ -514,8 +514,8 @@ static void test_scene_blob(void)
 
 /* ================= photon-map blob ================= */
 
-#define S_HDR 156
-#define S_HASH_AT 148
+#define S_HDR 188
+#define S_HASH_AT 180
 
 static pf_kdtree_t *s_random_tree(size_t n)
 {
@@ -555,6 +555,8 @@ static const char *s_maps_diff(const pf_photon_maps_t *a, const pf_photon_maps_t
         return "radii";
     const pf_kdtree_t *ta[3] = { a->global, a->caustic, a->irradiance };
     const pf_kdtree_t *tb[3] = { b->global, b->caustic, b->irradiance };
+    if (!a->irradiance_deep != !b->irradiance_deep)
+        return "deep irradiance present in one only";
     for (int m = 0; m < 3; m++) {
         if (!tb[m])
             return "missing tree";
@@ -649,13 +651,14 @@ static void s_map_round_trip(const pf_photon_maps_t *maps, const pf_buf_t *b, ui
 static void s_map_patches(const pf_buf_t *b, uint64_t sh, uint64_t th)
 {
     /* Header: magic 0, version 4, record 6, scene 8, settings 16, emitted 24
-     * and 32, radii 40/44/48, maps at 52 (count, lo, hi; 32 bytes each),
-     * content hash 148. */
-    const size_t g = 52, c = 84, ir = 116;
+     * and 32, radii 40/44/48, maps at 52 (count, lo, hi; 32 bytes each:
+     * global, caustic, irradiance, deep irradiance), content hash 180. */
+    const size_t g = 52, c = 84, ir = 116, dp = 148;
     const s_mpatch_t patches[] = {
         { 0, 1, 'X', 0, 0, PF_EPARSE, "bad magic", "magic" },
         { 4, 2, 2, 0, 0, PF_EMISMATCH, "format version 2", "version 2 (before the bounce counts)" },
-        { 4, 2, 4, 0, 0, PF_EMISMATCH, "format version 4", "version" },
+        { 4, 2, 3, 0, 0, PF_EMISMATCH, "format version 3", "version 3 (before the deep irradiance map)" },
+        { 4, 2, 5, 0, 0, PF_EMISMATCH, "format version 5", "version" },
         { 6, 2, 40, 0, 0, PF_EMISMATCH, "photon record size 40", "record size" },
         { 8, 1, 0, 0, 0, PF_EMISMATCH, "scene hash", "scene hash" },
         { 16, 1, 0, 0, 0, PF_EMISMATCH, "settings hash", "settings hash" },
@@ -665,12 +668,13 @@ static void s_map_patches(const pf_buf_t *b, uint64_t sh, uint64_t th)
         { 44, -4, 0, 0.0f, 0, PF_EPARSE, "caustic_r2 0 must be", "caustic_r2 0" },
         { 48, -4, 0, -1.0f, 0, PF_EPARSE, "irradiance_r2 -1", "irradiance_r2 < 0" },
         { 44, -4, 0, 0.001f, 0, PF_EPARSE, "content hash", "caustic_r2 changed in range" },
-        { g, 8, 301, 0, 0, PF_EPARSE, "counts (global 301, caustic 0, irradiance 75) need 12032 bytes", "global count + 1" },
+        { g, 8, 301, 0, 0, PF_EPARSE, "counts (global 301, caustic 0, irradiance 75, deep irradiance 0) need 12032 bytes", "global count + 1" },
         { g, 8, 299, 0, 0, PF_EPARSE, "need 11968 bytes after the header, but the blob has 12000", "global count - 1" },
         { g, 8, 1ull << 31, 0, 0, PF_EPARSE, "global count 2147483648 is over the kd-tree limit", "count 2^31" },
         { g, 8, UINT64_MAX, 0, 0, PF_EPARSE, "over the kd-tree limit", "count 2^64-1" },
         { c, 8, 1, 0, 0, PF_EPARSE, "caustic 1,", "caustic count 1" },
-        { ir, 8, 1000000, 0, 0, PF_EPARSE, "irradiance 1000000)", "irradiance count" },
+        { ir, 8, 1000000, 0, 0, PF_EPARSE, "irradiance 1000000,", "irradiance count" },
+        { dp, 8, 2, 0, 0, PF_EPARSE, "deep irradiance 2)", "deep irradiance count" },
         { g + 8, -4, 0, INFINITY, 0, PF_EPARSE, "global bounds on x are not finite", "bounds inf" },
         { c + 8 + 12, -4, 0, NAN, 0, PF_EPARSE, "caustic bounds on x are not finite", "empty map's bounds NaN" },
         { ir + 8 + 4, -4, 0, 1e9f, 0, PF_EPARSE, "irradiance bounds on y are empty", "bounds lo > hi" },
@@ -769,6 +773,38 @@ static void s_map_empty(uint64_t sh, uint64_t th)
     pf_photon_maps_free(&maps);
 }
 
+/* The deep gathers' points (format 4) travel as a fourth map: they come
+ * back bit for bit, and a blob without them reads as none (NULL). */
+static void s_map_deep(uint64_t sh, uint64_t th)
+{
+    pf_photon_maps_t maps = s_random_maps(200, 10, 50), back;
+    maps.irradiance_deep = s_random_tree(50);
+    pf_buf_t b = { 0 };
+    pf_error_t err = { "" };
+    CHECK(pf_mapfile_write(&maps, sh, th, &b) == 0 && b.len == S_HDR + 310 * 32, "deep: size %zu", b.len);
+    int rc = pf_mapfile_read(b.data, b.len, sh, th, &back, &err);
+    CHECK(rc == 0 && s_maps_diff(&maps, &back) == NULL && back.irradiance_deep &&
+              pf_kdtree_size(back.irradiance_deep) == 50 &&
+              memcmp(pf_kdtree_photons(back.irradiance_deep), pf_kdtree_photons(maps.irradiance_deep),
+                     50 * sizeof(pf_photon_t)) == 0,
+          "deep round trip: %s", err.msg);
+    pf_photon_maps_free(&back);
+    /* A photon of the deep map out of its bounds is caught like any other. */
+    const float far = 1e6f;
+    memcpy(b.data + S_HDR + 260 * 32, &far, 4);
+    s_rehash(b.data, b.len);
+    CHECK(pf_mapfile_read(b.data, b.len, sh, th, &back, &err) == PF_EPARSE && strstr(err.msg, "deep irradiance photon"),
+          "deep photon patched: '%s'", err.msg);
+    pf_buf_free(&b);
+    pf_kdtree_destroy(&maps.irradiance_deep);
+    CHECK(pf_mapfile_write(&maps, sh, th, &b) == 0, "no deep: write");
+    rc = pf_mapfile_read(b.data, b.len, sh, th, &back, &err);
+    CHECK(rc == 0 && back.irradiance_deep == NULL, "no deep map reads as none: %s", err.msg);
+    pf_photon_maps_free(&back);
+    pf_buf_free(&b);
+    pf_photon_maps_free(&maps);
+}
+
 /* A larger set, for the timing of the per-photon path. */
 static void s_map_timing(uint64_t sh, uint64_t th)
 {
@@ -796,6 +832,7 @@ static void test_map_blob(void)
     CHECK(b.len == S_HDR + 375 * 32, "size %zu", b.len);
     s_map_round_trip(&maps, &b, sh, th);
     s_map_patches(&b, sh, th);
+    s_map_deep(sh, th);
     s_map_order_and_trailing(&b, sh, th);
     pf_buf_free(&b);
     pf_photon_maps_free(&maps);
