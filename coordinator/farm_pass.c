@@ -14,6 +14,7 @@
 #include <string.h>
 
 #include "base/log.h"
+#include "coordinator/adapt.h"
 #include "coordinator/farm.h"
 #include "coordinator/farm_impl.h"
 #include "photon/photonmap.h"
@@ -30,7 +31,11 @@ static int s_add_done(pf_fm_t *f)
         if (t->state != PF_T_DONE)
             continue;
         const float *px = &f->img->rgb[3 * ((size_t)t->y0 * (size_t)f->img->width + t->x0)];
-        pf_accum_add(&f->acc, (int)t->x0, (int)t->y0, (int)t->w, (int)t->h, px, 3 * (size_t)f->img->width, spp);
+        if (f->counts)
+            pf_accum_add_map(&f->acc, (int)t->x0, (int)t->y0, (int)t->w, (int)t->h, px, 3 * (size_t)f->img->width,
+                             f->counts);
+        else
+            pf_accum_add(&f->acc, (int)t->x0, (int)t->y0, (int)t->w, (int)t->h, px, 3 * (size_t)f->img->width, spp);
         n++;
     }
     return n;
@@ -128,6 +133,18 @@ int pf_fm_pass_plan(pf_fm_t *f, int pass, pf_settings_t *s)
     s->pass = pass;
     s->seed = pf_pass_seed(f->ph.base.seed, pass);
     return f->o->budget ? pf_budget_plan_pass_photons(f->o->budget, pass, s) : 0;
+}
+
+void pf_fm_pass_counts(pf_fm_t *f)
+{
+    f->counts = NULL;
+    if (!f->o->adaptive || !pf_fm_progressive(f) || f->cur_pass < 1)
+        return;
+    size_t n = (size_t)f->img->width * (size_t)f->img->height;
+    if (!f->counts_buf && !(f->counts_buf = malloc(n * sizeof *f->counts_buf)))
+        return; /* uniform, as job.c does */
+    if (pf_adapt_counts(&f->acc, f->cur.spp, f->counts_buf) == PF_OK)
+        f->counts = f->counts_buf;
 }
 
 void pf_fm_pass_resolve(pf_fm_t *f)
