@@ -5,6 +5,7 @@
 #include "coordinator/adapt.h"
 
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 
 #include "base/status.h"
@@ -87,6 +88,20 @@ static void s_uniform(uint16_t *counts, size_t n, int spp)
 {
     for (size_t p = 0; p < n; p++)
         counts[p] = (uint16_t)(spp > PF_ADAPT_MAX_SPP ? PF_ADAPT_MAX_SPP : spp);
+}
+
+void pf_adapt_note(const uint16_t *counts, size_t n, char *buf, size_t len)
+{
+    if (len)
+        buf[0] = 0;
+    if (!counts || !n)
+        return;
+    unsigned lo = counts[0], hi = counts[0];
+    for (size_t p = 1; p < n; p++) {
+        lo = counts[p] < lo ? counts[p] : lo;
+        hi = counts[p] > hi ? counts[p] : hi;
+    }
+    snprintf(buf, len, " (adaptive, %u..%u per pixel)", lo, hi);
 }
 
 int pf_adapt_counts(const pf_accum_t *acc, int spp, uint16_t *counts)

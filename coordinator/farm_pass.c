@@ -45,12 +45,13 @@ static void s_pass_log(pf_fm_t *f, int done)
 {
     pf_farm_summary_t *sum = f->sum;
     const pf_settings_t *s = &f->cur;
-    char left[48] = "", err[48] = "";
+    char left[48] = "", err[48] = "", ad[64];
+    pf_adapt_note(f->counts, (size_t)f->img->width * (size_t)f->img->height, ad, sizeof ad);
     if (f->o->budget)
         snprintf(left, sizeof left, ", %.1f s left", pf_budget_left(f->o->budget));
     if (isfinite(sum->error_est))
         snprintf(err, sizeof err, ", est. relMSE %.2g", sum->error_est);
-    pf_info("pass %d: %d spp, %llu photons (%llu so far), radius x%.3f, tiles %.2f s%s%s%s", s->pass + 1, s->spp,
+    pf_info("pass %d: %d spp%s, %llu photons (%llu so far), radius x%.3f, tiles %.2f s%s%s%s", s->pass + 1, s->spp, ad,
             (unsigned long long)(s->photons + s->caustic_photons), (unsigned long long)sum->photons_total,
             sqrt((double)pf_pass_shrink2(s->pass)), pf_now() - f->pass_start,
             done < f->L.nt ? " (cut short)" : "", err, left);

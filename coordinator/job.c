@@ -128,10 +128,11 @@ static void s_pass_log(const pf_job_summary_t *sum, const pf_settings_t *s, cons
     char left[48] = "";
     if (b)
         snprintf(left, sizeof left, ", %.1f s left", pf_budget_left(b));
-    char err[48] = "";
+    char err[48] = "", ad[64];
     if (isfinite(sum->error_est))
         snprintf(err, sizeof err, ", est. relMSE %.2g", sum->error_est);
-    pf_info("pass %d: %d spp, %llu photons (%llu so far), radius x%.3f, %.2f s%s%s%s", s->pass + 1, s->spp,
+    pf_adapt_note(ctx->spp_map ? ctx->spp_map->n : NULL, (size_t)s->width * (size_t)s->height, ad, sizeof ad);
+    pf_info("pass %d: %d spp%s, %llu photons (%llu so far), radius x%.3f, %.2f s%s%s%s", s->pass + 1, s->spp, ad,
             (unsigned long long)(s->photons + s->caustic_photons), (unsigned long long)sum->photons_total,
             sqrt((double)ctx->shrink2), pass_s, done < total ? " (cut short)" : "", err, left);
     (void)total;
