@@ -27,6 +27,10 @@
 #define PF_ADAPT_MAX_R 3
 #define PF_ADAPT_BLUR_R 2
 
+/* Hashed into a checkpoint's key (checkpoint.h) when the passes are
+ * adaptive: a uniform render's checkpoint is not theirs. */
+#define PF_ADAPT_KEY 0xada97u
+
 /* A pixel takes at most this many times the image's mean score. */
 #define PF_ADAPT_CAP 16.0
 

@@ -13,6 +13,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "base/hash.h"
 #include "base/log.h"
 #include "coordinator/adapt.h"
 #include "coordinator/farm.h"
@@ -195,6 +196,8 @@ int pf_fm_resume_load(pf_fm_t *f, const pf_scene_t *scene, const pf_settings_t *
 {
     f->resumed_pass = -1;
     f->ckpt_key = pf_ckpt_key(scene, s, terms, f->o->passes, f->o->budget != NULL, f->ts);
+    if (f->o->adaptive && pf_fm_progressive(f))
+        f->ckpt_key = pf_hash_u64(f->ckpt_key, PF_ADAPT_KEY);
     if (!f->o->resume || !f->o->checkpoint)
         return PF_OK;
     pf_error_t e = { { 0 } };

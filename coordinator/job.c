@@ -11,6 +11,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "base/hash.h"
 #include "base/log.h"
 #include "coordinator/accum.h"
 #include "coordinator/adapt.h"
@@ -195,6 +196,8 @@ static int s_progressive(pf_frame_t *frame, const pf_settings_t *base, unsigned 
         return pf_error_set(err, PF_ENOMEM, NULL, 0, "cannot allocate the passes' %dx%d sums", base->width,
                             base->height);
     uint64_t key = pf_ckpt_key(frame->scene, base, terms, run->passes, run->budget != NULL, S_TILE);
+    if (run->adaptive) /* another image: its checkpoint is another render's */
+        key = pf_hash_u64(key, PF_ADAPT_KEY);
     int first = s_resume(run, key, base, &acc, sum, err);
     if (first < 0) {
         pf_accum_free(&acc);
