@@ -925,34 +925,6 @@ static void test_fuzz(void)
         pf_buf_free(&valid[t]);
 }
 
-/* A TILE of an adaptive pass carries its per-pixel samples; a count of 0
- * is refused both ways; a decoded TILE re-encodes to the same frame. */
-static void test_tile_counts(void)
-{
-    const uint16_t counts[6] = { 1, 2, 300, 65535, 7, 4 };
-    pf_msg_t m, d;
-    s_sample(PF_MSG_TILE, &m);
-    m.u.tile.cx0 = 62, m.u.tile.cy0 = 30, m.u.tile.cw = 3, m.u.tile.ch = 2;
-    m.u.tile.counts = counts;
-    pf_buf_t b = { 0 }, b2 = { 0 };
-    CHECK(pf_msg_encode(&m, &b) == PF_OK, "TILE with counts encodes");
-    char why[256] = "";
-    CHECK(pf_msg_decode(b.data, b.len, &d, why, sizeof why) == PF_OK, "TILE with counts decodes: %s", why);
-    int same = d.u.tile.cx0 == 62 && d.u.tile.cy0 == 30 && d.u.tile.cw == 3 && d.u.tile.ch == 2;
-    for (uint32_t i = 0; same && i < 6; i++)
-        same = pf_msg_tile_count(&d.u.tile, i) == counts[i];
-    CHECK(same, "the counts come back");
-    CHECK(pf_msg_encode(&d, &b2) == PF_OK && b2.len == b.len && memcmp(b.data, b2.data, b.len) == 0,
-          "a decoded TILE re-encodes to the same frame");
-    const uint16_t zero[6] = { 1, 2, 0, 4, 5, 6 };
-    m.u.tile.counts = zero;
-    CHECK(pf_msg_encode(&m, &b2) == PF_EINVAL, "a count of 0 is refused");
-    b.data[b.len - 7] = 0, b.data[b.len - 8] = 0; /* count 2 (300) on the wire */
-    CHECK(pf_msg_decode(b.data, b.len, &d, why, sizeof why) == PF_EPARSE, "a count of 0 on the wire: %s", why);
-    pf_buf_free(&b);
-    pf_buf_free(&b2);
-}
-
 static void test_fingerprint(void)
 {
     pf_fingerprint_t self = pf_frame_fingerprint();
@@ -1014,7 +986,6 @@ int main(void)
     test_truncations();
     test_corruptions();
     test_encoder_refuses();
-    test_tile_counts();
     test_fuzz();
     test_fingerprint();
     printf("%d passed, %d failed\n", s_passed, s_failed);
