@@ -101,7 +101,8 @@ void pf_adapt_note(const uint16_t *counts, size_t n, char *buf, size_t len)
         lo = counts[p] < lo ? counts[p] : lo;
         hi = counts[p] > hi ? counts[p] : hi;
     }
-    snprintf(buf, len, " (adaptive, %u..%u per pixel)", lo, hi);
+    if (lo < hi) /* a pass of 1 spp has nothing to share */
+        snprintf(buf, len, " (adaptive, %u..%u per pixel)", lo, hi);
 }
 
 int pf_adapt_counts(const pf_accum_t *acc, int spp, uint16_t *counts)

@@ -47,7 +47,8 @@
 int pf_adapt_counts(const pf_accum_t *acc, int spp, uint16_t *counts);
 
 /* For the pass's log line: " (adaptive, LO..HI per pixel)" with the
- * least and most of the n counts into buf, or "" when counts is NULL. */
+ * least and most of the n counts into buf, or "" when counts is NULL or
+ * uniform. */
 void pf_adapt_note(const uint16_t *counts, size_t n, char *buf, size_t len);
 
 #endif
