@@ -51,6 +51,16 @@ void pf_accum_add(pf_accum_t *a, int x0, int y0, int w, int h, const float *rgb,
     }
 }
 
+void pf_accum_add_map(pf_accum_t *a, int x0, int y0, int w, int h, const float *rgb, size_t stride,
+                      const uint16_t *counts)
+{
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++) {
+            size_t p = (size_t)(y0 + y) * (size_t)a->width + (size_t)(x0 + x);
+            pf_accum_add(a, x0 + x, y0 + y, 1, 1, rgb + (size_t)y * stride + 3 * (size_t)x, 3, counts[p]);
+        }
+}
+
 size_t pf_accum_resolve(const pf_accum_t *a, pf_image_t *img)
 {
     size_t n = (size_t)a->width * (size_t)a->height, empty = 0;

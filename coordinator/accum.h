@@ -33,6 +33,11 @@ void pf_accum_free(pf_accum_t *a);
  * of `spp` camera samples. */
 void pf_accum_add(pf_accum_t *a, int x0, int y0, int w, int h, const float *rgb, size_t stride, uint32_t spp);
 
+/* pf_accum_add with each pixel's own camera samples: counts holds the
+ * whole image's (width x height, row by row; adapt.h). */
+void pf_accum_add_map(pf_accum_t *a, int x0, int y0, int w, int h, const float *rgb, size_t stride,
+                      const uint16_t *counts);
+
 /* The mean into img (allocated at the accumulator's size). Returns the
  * pixels no pass reached (left black). */
 size_t pf_accum_resolve(const pf_accum_t *a, pf_image_t *img);

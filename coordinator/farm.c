@@ -523,6 +523,7 @@ static int s_on_photons_done(pf_fm_t *f, pf_error_t *err)
     }
     f->cur = f->ph.settings;
     f->cur_pass = f->ph.pass;
+    pf_fm_pass_counts(f);
     f->job = f->ph.job;
     if (f->ph.pass == f->resumed_pass) {
         int rc = pf_fm_resume_tiles(f, err);
@@ -843,6 +844,7 @@ static void s_free(pf_fm_t *f)
     pf_leases_free(&f->L);
     pf_registry_free(&f->reg);
     pf_accum_free(&f->acc);
+    free(f->counts_buf);
     pf_ckpt_free(&f->resumed);
 }
 

@@ -41,6 +41,7 @@ typedef struct pf_farm_opts {
                                  NULL: none */
     int resume;               /* go on from the checkpoint (none there: start afresh; another render's: an
                                  error) */
+    int adaptive;             /* progressive passes: from the second on, samples where the error is (adapt.h) */
     /* Budgets against hostile peers (docs/farm.md, "Hostile peers"). */
     int max_workers;          /* registry slots; dead ones are reused (default 1024) */
     double hello_rate;        /* HELLOs served per second, all peers together; the excess is dropped (default 100;

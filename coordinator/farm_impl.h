@@ -145,6 +145,10 @@ typedef struct pf_fm {
     double pass_start;
     int cur_pass;
     pf_settings_t cur;
+    /* Adaptive passes (adapt.h): the current pass's samples per pixel
+     * (the whole image), NULL while a pass is uniform; its storage. */
+    const uint16_t *counts;
+    uint16_t *counts_buf;
     /* Checkpoints (farm_pass.c): the render's key, when the last was
      * written and how many tiles it held; the checkpoint resumed from, its
      * tiles put in when its pass begins (resumed_pass: that pass, -1). */
@@ -212,6 +216,10 @@ int pf_fm_pass_reset(pf_fm_t *f, pf_error_t *err);
 int pf_fm_pass_plan(pf_fm_t *f, int pass, pf_settings_t *s);
 /* The running mean into f->img. */
 void pf_fm_pass_resolve(pf_fm_t *f);
+/* The current pass's samples per pixel (f->counts) from the passes before
+ * it, when adaptive (opts->adaptive, a second pass or later); else
+ * f->counts = NULL. Call when a pass begins. */
+void pf_fm_pass_counts(pf_fm_t *f);
 /* Writes the checkpoint (if the render keeps one): the passes done and the
  * tiles of the pass under way; `force`: now, else only when PF_FARM_CKPT_S
  * have passed and tiles came in. Logs (once) when it cannot. */

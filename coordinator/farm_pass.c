@@ -13,7 +13,9 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "base/hash.h"
 #include "base/log.h"
+#include "coordinator/adapt.h"
 #include "coordinator/farm.h"
 #include "coordinator/farm_impl.h"
 #include "photon/photonmap.h"
@@ -30,7 +32,11 @@ static int s_add_done(pf_fm_t *f)
         if (t->state != PF_T_DONE)
             continue;
         const float *px = &f->img->rgb[3 * ((size_t)t->y0 * (size_t)f->img->width + t->x0)];
-        pf_accum_add(&f->acc, (int)t->x0, (int)t->y0, (int)t->w, (int)t->h, px, 3 * (size_t)f->img->width, spp);
+        if (f->counts)
+            pf_accum_add_map(&f->acc, (int)t->x0, (int)t->y0, (int)t->w, (int)t->h, px, 3 * (size_t)f->img->width,
+                             f->counts);
+        else
+            pf_accum_add(&f->acc, (int)t->x0, (int)t->y0, (int)t->w, (int)t->h, px, 3 * (size_t)f->img->width, spp);
         n++;
     }
     return n;
@@ -40,12 +46,13 @@ static void s_pass_log(pf_fm_t *f, int done)
 {
     pf_farm_summary_t *sum = f->sum;
     const pf_settings_t *s = &f->cur;
-    char left[48] = "", err[48] = "";
+    char left[48] = "", err[48] = "", ad[64];
+    pf_adapt_note(f->counts, (size_t)f->img->width * (size_t)f->img->height, ad, sizeof ad);
     if (f->o->budget)
         snprintf(left, sizeof left, ", %.1f s left", pf_budget_left(f->o->budget));
     if (isfinite(sum->error_est))
         snprintf(err, sizeof err, ", est. relMSE %.2g", sum->error_est);
-    pf_info("pass %d: %d spp, %llu photons (%llu so far), radius x%.3f, tiles %.2f s%s%s%s", s->pass + 1, s->spp,
+    pf_info("pass %d: %d spp%s, %llu photons (%llu so far), radius x%.3f, tiles %.2f s%s%s%s", s->pass + 1, s->spp, ad,
             (unsigned long long)(s->photons + s->caustic_photons), (unsigned long long)sum->photons_total,
             sqrt((double)pf_pass_shrink2(s->pass)), pf_now() - f->pass_start,
             done < f->L.nt ? " (cut short)" : "", err, left);
@@ -130,6 +137,18 @@ int pf_fm_pass_plan(pf_fm_t *f, int pass, pf_settings_t *s)
     return f->o->budget ? pf_budget_plan_pass_photons(f->o->budget, pass, s) : 0;
 }
 
+void pf_fm_pass_counts(pf_fm_t *f)
+{
+    f->counts = NULL;
+    if (!f->o->adaptive || !pf_fm_progressive(f) || f->cur_pass < 1)
+        return;
+    size_t n = (size_t)f->img->width * (size_t)f->img->height;
+    if (!f->counts_buf && !(f->counts_buf = malloc(n * sizeof *f->counts_buf)))
+        return; /* uniform, as job.c does */
+    if (pf_adapt_counts(&f->acc, f->cur.spp, f->counts_buf) == PF_OK)
+        f->counts = f->counts_buf;
+}
+
 void pf_fm_pass_resolve(pf_fm_t *f)
 {
     f->sum->unreached = pf_accum_resolve(&f->acc, f->img);
@@ -177,6 +196,8 @@ int pf_fm_resume_load(pf_fm_t *f, const pf_scene_t *scene, const pf_settings_t *
 {
     f->resumed_pass = -1;
     f->ckpt_key = pf_ckpt_key(scene, s, terms, f->o->passes, f->o->budget != NULL, f->ts);
+    if (f->o->adaptive && pf_fm_progressive(f))
+        f->ckpt_key = pf_hash_u64(f->ckpt_key, PF_ADAPT_KEY);
     if (!f->o->resume || !f->o->checkpoint)
         return PF_OK;
     pf_error_t e = { { 0 } };

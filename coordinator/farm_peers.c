@@ -14,6 +14,7 @@
 #include <zmq.h>
 
 #include "base/log.h"
+#include "base/status.h"
 #include "coordinator/farm.h"
 #include "coordinator/farm_impl.h"
 
@@ -184,6 +185,28 @@ static uint32_t s_credit(const pf_fm_t *f, const pf_worker_t *w, int takers)
     return cap >= 1 ? (uint32_t)cap : 1;
 }
 
+/* An adaptive pass's samples for TILE t (f->counts over the tile and its
+ * first-gather border, clipped to the image) into t, in a buffer the
+ * caller frees; NULL (t left uniform) when the pass is uniform. Out of
+ * memory aborts: a tile sent without its counts would be the wrong one. */
+static uint16_t *s_tile_counts(const pf_fm_t *f, pf_msg_tile_t *t)
+{
+    if (!f->counts)
+        return NULL;
+    int W = f->img->width, H = f->img->height, R = f->cur.gather_filter > 0 ? f->cur.gather_filter : 0;
+    int x0 = (int)t->x0 - R > 0 ? (int)t->x0 - R : 0, y0 = (int)t->y0 - R > 0 ? (int)t->y0 - R : 0;
+    int x1 = (int)(t->x0 + t->w) + R < W ? (int)(t->x0 + t->w) + R : W;
+    int y1 = (int)(t->y0 + t->h) + R < H ? (int)(t->y0 + t->h) + R : H;
+    uint16_t *c = malloc((size_t)(x1 - x0) * (size_t)(y1 - y0) * sizeof *c);
+    PF_CHECK(c != NULL);
+    for (int y = y0; y < y1; y++)
+        memcpy(&c[(size_t)(y - y0) * (size_t)(x1 - x0)], &f->counts[(size_t)y * (size_t)W + (size_t)x0],
+               (size_t)(x1 - x0) * sizeof *c);
+    t->cx0 = (uint32_t)x0, t->cy0 = (uint32_t)y0, t->cw = (uint32_t)(x1 - x0), t->ch = (uint32_t)(y1 - y0);
+    t->counts = c;
+    return c;
+}
+
 static void s_lease(pf_fm_t *f, int wi, int takers)
 {
     pf_worker_t *w = &f->reg.w[wi];
@@ -198,8 +221,12 @@ static void s_lease(pf_fm_t *f, int wi, int takers)
         int ti = pf_leases_grant(&f->L, &f->reg, pos, wi, now);
         const pf_tile_t *t = &f->L.t[ti];
         pf_msg_t m = { .type = PF_MSG_TILE };
-        m.u.tile = (pf_msg_tile_t){ (uint32_t)ti, t->attempt, t->x0, t->y0, t->w, t->h };
-        if (pf_fm_send(f, wi, &m) != 0) {
+        m.u.tile = (pf_msg_tile_t){ .tile = (uint32_t)ti, .attempt = t->attempt, .x0 = t->x0, .y0 = t->y0,
+                                    .w = t->w, .h = t->h };
+        uint16_t *counts = s_tile_counts(f, &m.u.tile);
+        int sent = pf_fm_send(f, wi, &m);
+        free(counts);
+        if (sent != 0) {
             pf_leases_ungrant(&f->L, &f->reg, ti); /* unless the failure already declared it dead */
             break;
         }

@@ -11,8 +11,10 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "base/hash.h"
 #include "base/log.h"
 #include "coordinator/accum.h"
+#include "coordinator/adapt.h"
 #include "coordinator/checkpoint.h"
 #include "coordinator/progress.h"
 
@@ -103,7 +105,10 @@ static int s_render_pass(const pf_render_ctx_t *ctx, int threads, pf_accum_t *ac
             int x0 = (t % tx) * S_TILE, y0 = (t / tx) * S_TILE;
             int w = x0 + S_TILE <= W ? S_TILE : W - x0, h = y0 + S_TILE <= H ? S_TILE : H - y0;
             pf_render_tile(ctx, x0, y0, w, h, buf);
-            pf_accum_add(acc, x0, y0, w, h, buf, 3 * (size_t)w, spp);
+            if (ctx->spp_map)
+                pf_accum_add_map(acc, x0, y0, w, h, buf, 3 * (size_t)w, ctx->spp_map->n);
+            else
+                pf_accum_add(acc, x0, y0, w, h, buf, 3 * (size_t)w, spp);
             spent += pf_now() - t0;
             mine++;
             int d;
@@ -124,10 +129,11 @@ static void s_pass_log(const pf_job_summary_t *sum, const pf_settings_t *s, cons
     char left[48] = "";
     if (b)
         snprintf(left, sizeof left, ", %.1f s left", pf_budget_left(b));
-    char err[48] = "";
+    char err[48] = "", ad[64];
     if (isfinite(sum->error_est))
         snprintf(err, sizeof err, ", est. relMSE %.2g", sum->error_est);
-    pf_info("pass %d: %d spp, %llu photons (%llu so far), radius x%.3f, %.2f s%s%s%s", s->pass + 1, s->spp,
+    pf_adapt_note(ctx->spp_map ? ctx->spp_map->n : NULL, (size_t)s->width * (size_t)s->height, ad, sizeof ad);
+    pf_info("pass %d: %d spp%s, %llu photons (%llu so far), radius x%.3f, %.2f s%s%s%s", s->pass + 1, s->spp, ad,
             (unsigned long long)(s->photons + s->caustic_photons), (unsigned long long)sum->photons_total,
             sqrt((double)ctx->shrink2), pass_s, done < total ? " (cut short)" : "", err, left);
     (void)total;
@@ -190,6 +196,8 @@ static int s_progressive(pf_frame_t *frame, const pf_settings_t *base, unsigned 
         return pf_error_set(err, PF_ENOMEM, NULL, 0, "cannot allocate the passes' %dx%d sums", base->width,
                             base->height);
     uint64_t key = pf_ckpt_key(frame->scene, base, terms, run->passes, run->budget != NULL, S_TILE);
+    if (run->adaptive) /* another image: its checkpoint is another render's */
+        key = pf_hash_u64(key, PF_ADAPT_KEY);
     int first = s_resume(run, key, base, &acc, sum, err);
     if (first < 0) {
         pf_accum_free(&acc);
@@ -202,6 +210,8 @@ static int s_progressive(pf_frame_t *frame, const pf_settings_t *base, unsigned 
         pf_error_set(err, rc, NULL, 0, "photon pass failed: %s", pf_strerror(rc));
     double deadline = b ? pf_budget_tiles_deadline(b) : INFINITY;
     int tiles = ((base->width + S_TILE - 1) / S_TILE) * ((base->height + S_TILE - 1) / S_TILE);
+    uint16_t *counts = run->adaptive ? malloc((size_t)base->width * (size_t)base->height * sizeof *counts) : NULL;
+    pf_spp_map_t map = { 0, 0, base->width, base->height, counts };
     sum->error_est = NAN;
     for (int pass = first; rc == PF_OK && pass < PF_MAX_PASSES; pass++) {
         if ((run->passes > 0 && pass >= run->passes) || (run->stop && *run->stop))
@@ -227,6 +237,9 @@ static int s_progressive(pf_frame_t *frame, const pf_settings_t *base, unsigned 
         pf_render_ctx_init(&ctx, frame, &s);
         ctx.terms = terms;
         ctx.dropped = &sum->dropped_samples;
+        /* adaptive: from the second pass on (the first has no estimate) */
+        if (counts && pass > 0 && pf_adapt_counts(&acc, s.spp, counts) == PF_OK)
+            ctx.spp_map = &map;
         pf_progress_t bar;
         pf_progress_begin(&bar, "render", run->show_progress);
         double t1 = pf_now();
@@ -253,6 +266,7 @@ static int s_progressive(pf_frame_t *frame, const pf_settings_t *base, unsigned 
             break;
     }
     s_texel_note(frame);
+    free(counts);
     sum->interrupted = run->stop && *run->stop;
     if (rc == PF_OK && sum->passes == 0)
         rc = pf_error_set(err, sum->interrupted ? PF_EINTERRUPTED : PF_ETIMEOUT, NULL, 0,

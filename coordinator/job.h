@@ -49,6 +49,7 @@ typedef struct pf_job_run {
     const char *checkpoint; /* progressive passes: the passes done are kept there (checkpoint.h) after each, and
                                the file removed when the render ends well; NULL: none */
     int resume;             /* go on from the checkpoint's passes (none there: start afresh) */
+    int adaptive;           /* progressive passes: from the second on, samples where the error is (adapt.h) */
 } pf_job_run_t;
 
 /* Renders scene with settings (size, threads, photons, ...) and terms (a

@@ -73,6 +73,8 @@ static void s_usage(FILE *f)
             "                           included): each pass's photons and spp chosen by measuring this\n"
             "                           machine (or farm); given --spp/--photons are kept per pass.\n"
             "                           Ctrl-C writes the image of the passes done\n"
+            "      --no-adaptive        progressive passes all uniform; by default passes after the\n"
+            "                           first put their samples where the passes so far see noise\n"
             "      --terms LIST         render only these terms: emitted,direct,caustic,indirect (all);\n"
             "                           photonmap shows the global map's radiance (debugging)\n"
             "      --strict             a .pbrt scene that asks for anything approximated or ignored\n"
@@ -222,7 +224,7 @@ enum {
     OPT_HDR = 256, OPT_SIZE, OPT_SPP, OPT_PHOTONS, OPT_CPHOTONS, OPT_GATHER, OPT_GFILTER, OPT_LSAMPLES, OPT_GK, OPT_CK, OPT_CR,
     OPT_DEPTH, OPT_PDEPTH, OPT_THREADS, OPT_SEED, OPT_EXPOSURE, OPT_PFILTER, OPT_TERMS, OPT_WORKERS, OPT_BIND, OPT_MINW, OPT_CSECRET,
     OPT_CALLOW, OPT_TILE, OPT_HB, OPT_WATCHDOG, OPT_MAXWAIT, OPT_WEXE, OPT_TLIMIT, OPT_QUALITY, OPT_STRICT,
-    OPT_LEASE, OPT_STRIKES, OPT_FANOUT, OPT_VERIFY, OPT_PASSES, OPT_CKPT, OPT_RESUME,
+    OPT_LEASE, OPT_STRIKES, OPT_FANOUT, OPT_VERIFY, OPT_PASSES, OPT_CKPT, OPT_RESUME, OPT_NOADAPT,
 };
 
 /* SIGINT and SIGTERM. The farm's event loop and the progressive passes poll
@@ -283,6 +285,7 @@ static const struct option s_render_opts[] = {
     { "fanout", required_argument, 0, OPT_FANOUT },
     { "verify", required_argument, 0, OPT_VERIFY }, { "passes", required_argument, 0, OPT_PASSES },
     { "checkpoint", required_argument, 0, OPT_CKPT }, { "resume", no_argument, 0, OPT_RESUME },
+    { "no-adaptive", no_argument, 0, OPT_NOADAPT },
     { 0, 0, 0, 0 },
 };
 
@@ -311,6 +314,7 @@ typedef struct s_render_args {
     char ckptbuf[1100];
     const pf_quality_t *quality;
     int strict; /* --strict: loader warnings are errors */
+    int no_adaptive; /* --no-adaptive: every progressive pass uniform */
 } s_render_args;
 
 /* The long name of the render option whose getopt value is c, for an error
@@ -387,6 +391,7 @@ static int s_parse_render_args(int argc, char **argv, s_render_args *a)
         case OPT_PASSES: bad = s_parse_int(optarg, 1, PF_MAX_PASSES, &a->passes); break;
         case OPT_CKPT: a->checkpoint = optarg; break;
         case OPT_RESUME: farm->resume = 1; break;
+        case OPT_NOADAPT: a->no_adaptive = 1; break;
         case OPT_QUALITY: bad = (a->quality = s_find_quality(optarg)) == NULL; break;
         case OPT_STRICT: a->strict = 1; break;
         case 'q': pf_log_set_level(PF_LOG_ERROR); break;
@@ -535,6 +540,7 @@ static int s_render_farm(pf_scene_t **scene_p, s_render_args *a, pf_budget_t *bu
     farm->show_progress = 1;
     farm->budget = a->time_limit > 0 ? budget : NULL;
     farm->passes = a->passes;
+    farm->adaptive = !a->no_adaptive;
     farm->checkpoint = s_checkpoint_path(a);
     s->threads = 0;
     s_catch_signals(s_on_signal);
@@ -576,7 +582,7 @@ static int s_render_here(pf_scene_t **scene_p, s_render_args *a, pf_budget_t *bu
     s_catch_signals(progressive ? s_on_signal : s_on_signal_exit);
     pf_job_run_t run = { .show_progress = 1, .budget = a->time_limit > 0 ? budget : NULL, .passes = a->passes,
                          .stop = &s_interrupted, .checkpoint = progressive ? s_checkpoint_path(a) : NULL,
-                         .resume = a->farm.resume };
+                         .resume = a->farm.resume, .adaptive = !a->no_adaptive };
     int rc = pf_job_render(*scene_p, s, a->terms, &run, img, sum, err);
     pf_scene_destroy(scene_p);
     if (rc != PF_OK) {

@@ -82,6 +82,9 @@ static void s_render_here(pf_fm_t *f, int ti)
     pf_render_ctx_t ctx;
     pf_render_ctx_init(&ctx, &f->ph.frame, &f->cur);
     ctx.terms = f->ph.terms;
+    pf_spp_map_t map = { 0, 0, f->img->width, f->img->height, f->counts };
+    if (f->counts)
+        ctx.spp_map = &map;
     double t0 = pf_now();
     pf_render_tile(&ctx, (int)t->x0, (int)t->y0, (int)t->w, (int)t->h, f->lpix);
     f->sum->verify_local++;

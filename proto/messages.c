@@ -55,10 +55,6 @@
 
 _Static_assert(PF_HASHTREE_CHUNK == PF_PROTO_CHUNK_SIZE, "chunk hashes cover exactly one BLOB_CHUNK each");
 
-#ifndef PF_GIT_HASH
-#define PF_GIT_HASH "unknown"
-#endif
-
 /* Bounds of the range checks (see messages.h for what each field means). */
 #define S_MAX_IMAGE_SIDE 65536
 #define S_MAX_DEPTH 100000
@@ -105,63 +101,6 @@ static void s_whyf(char *why, size_t why_len, const char *fmt, ...)
         if (rc == 0)       \
             rc = (call);   \
     } while (0)
-
-/* ---- fingerprint ---- */
-
-pf_fingerprint_t pf_fingerprint_make(uint16_t photon_size, uint16_t map_version)
-{
-    pf_fingerprint_t fp;
-    memset(&fp, 0, sizeof fp);
-    fp.protocol = PF_PROTO_VERSION;
-    fp.photon_size = photon_size;
-    fp.float_size = (uint16_t)sizeof(float);
-    fp.map_version = map_version;
-    snprintf(fp.git, sizeof fp.git, "%s", PF_GIT_HASH);
-    return fp;
-}
-
-int pf_fingerprint_check(const pf_fingerprint_t *worker, const pf_fingerprint_t *coord, char *why, size_t why_len)
-{
-    /* Each difference that makes the two builds unable to share photon maps
-     * or messages, as one clause; all of them, so one refusal tells the whole
-     * story. */
-    char text[512];
-    size_t n = 0;
-    text[0] = '\0';
-#define S_CLAUSE(...)                                                              \
-    do {                                                                           \
-        if (n < sizeof text) {                                                     \
-            int w_ = snprintf(text + n, sizeof text - n, "%s", n ? "; " : "");     \
-            n += w_ > 0 ? (size_t)w_ : 0;                                          \
-        }                                                                          \
-        if (n < sizeof text) {                                                     \
-            int w_ = snprintf(text + n, sizeof text - n, __VA_ARGS__);             \
-            n += w_ > 0 ? (size_t)w_ : 0;                                          \
-        }                                                                          \
-    } while (0)
-    if (worker->protocol != coord->protocol)
-        S_CLAUSE("protocol version %u (worker) vs %u (coordinator)", (unsigned)worker->protocol,
-                 (unsigned)coord->protocol);
-    if (worker->photon_size != coord->photon_size)
-        S_CLAUSE("photon record of %u bytes (worker) vs %u bytes (coordinator)", (unsigned)worker->photon_size,
-                 (unsigned)coord->photon_size);
-    if (worker->float_size != coord->float_size)
-        S_CLAUSE("float of %u bytes (worker) vs %u bytes (coordinator)", (unsigned)worker->float_size,
-                 (unsigned)coord->float_size);
-    if (worker->map_version != coord->map_version)
-        S_CLAUSE("photon-map format version %u (worker) vs %u (coordinator)", (unsigned)worker->map_version,
-                 (unsigned)coord->map_version);
-#undef S_CLAUSE
-    if (n == 0) {
-        /* Builds from different commits with the same protocol and layouts
-         * work together; the caller may log the git hashes itself. */
-        s_whyf(why, why_len, "%s", "");
-        return PF_OK;
-    }
-    s_whyf(why, why_len, "incompatible builds: %s (worker build %.47s, coordinator build %.47s)", text,
-           worker->git, coord->git);
-    return PF_EMISMATCH;
-}
 
 /* ---- the settings field group ----
  *
@@ -259,6 +198,25 @@ static uint16_t s_u16(s_dec_t *d, const char *field) { return s_need(d, 2, field
 static uint32_t s_u32(s_dec_t *d, const char *field) { return s_need(d, 4, field) ? pf_rd_u32(&d->r) : 0; }
 static uint64_t s_u64(s_dec_t *d, const char *field) { return s_need(d, 8, field) ? pf_rd_u64(&d->r) : 0; }
 static int s_i32(s_dec_t *d, const char *field) { return s_int_from_u32(s_u32(d, field)); }
+
+/* A TILE's per-pixel samples: the rectangle, then its counts. */
+static void s_tile_counts(s_dec_t *d, pf_msg_tile_t *t)
+{
+    t->cx0 = s_u32(d, "cx0");
+    t->cy0 = s_u32(d, "cy0");
+    t->cw = s_u32(d, "cw");
+    t->ch = s_u32(d, "ch");
+    uint64_t n = (uint64_t)t->cw * t->ch;
+    if (d->failed || n == 0)
+        return;
+    if (n > PF_PROTO_MAX_TILE_COUNTS) {
+        s_fail(d, "%" PRIu64 " per-pixel counts, over the limit of %u", n, (unsigned)PF_PROTO_MAX_TILE_COUNTS);
+        return;
+    }
+    if (!s_need(d, 2 * (size_t)n, "counts"))
+        return;
+    t->counts_le = pf_rd_bytes(&d->r, 2 * (size_t)n); /* each >= 1: s_check */
+}
 
 static float s_f32(s_dec_t *d, const char *field)
 {
@@ -380,6 +338,12 @@ int pf_settings_check(const pf_settings_t *s, char *why, size_t why_len)
 
 /* A tile rectangle: non-empty, at most PF_PROTO_MAX_TILE_PIXELS, and its far
  * edges representable. */
+/* Count i of a TILE to encode or decoded. */
+static uint16_t s_tile_count(const pf_msg_tile_t *t, uint32_t i)
+{
+    return t->counts ? t->counts[i] : pf_msg_tile_count(t, i);
+}
+
 static int s_bad_rect(char *why, size_t why_len, uint32_t x0, uint32_t y0, uint32_t w, uint32_t h)
 {
     if (s_out_of_range(why, why_len, "w", w, 1, PF_PROTO_MAX_TILE_PIXELS) ||
@@ -448,8 +412,21 @@ static int s_check(const pf_msg_t *m, char *why, size_t why_len)
     }
     case PF_MSG_READY:
         return s_out_of_range(why, why_len, "credit", m->u.ready.credit, 1, S_MAX_READY_CREDIT);
-    case PF_MSG_TILE:
-        return s_bad_rect(why, why_len, m->u.tile.x0, m->u.tile.y0, m->u.tile.w, m->u.tile.h);
+    case PF_MSG_TILE: {
+        const pf_msg_tile_t *t = &m->u.tile;
+        uint64_t n = (uint64_t)t->cw * t->ch;
+        if (n > PF_PROTO_MAX_TILE_COUNTS || (n && !t->counts && !t->counts_le)) {
+            s_whyf(why, why_len, "%" PRIu32 "x%" PRIu32 " per-pixel counts are over the limit or missing", t->cw,
+                   t->ch);
+            return 1;
+        }
+        for (uint32_t i = 0; i < n; i++)
+            if (s_tile_count(t, i) == 0) {
+                s_whyf(why, why_len, "count %" PRIu32 " is 0; a pixel takes at least one sample", i);
+                return 1;
+            }
+        return s_bad_rect(why, why_len, t->x0, t->y0, t->w, t->h);
+    }
     case PF_MSG_RESULT:
         return s_bad_rect(why, why_len, m->u.result.x0, m->u.result.y0, m->u.result.w, m->u.result.h);
     case PF_MSG_JOB_END:
@@ -640,6 +617,12 @@ int pf_msg_encode(const pf_msg_t *msg, pf_buf_t *out)
         W(pf_wr_u32(out, msg->u.tile.y0));
         W(pf_wr_u32(out, msg->u.tile.w));
         W(pf_wr_u32(out, msg->u.tile.h));
+        W(pf_wr_u32(out, msg->u.tile.cx0));
+        W(pf_wr_u32(out, msg->u.tile.cy0));
+        W(pf_wr_u32(out, msg->u.tile.cw));
+        W(pf_wr_u32(out, msg->u.tile.ch));
+        for (uint32_t i = 0; i < msg->u.tile.cw * msg->u.tile.ch && rc == 0; i++)
+            rc = pf_wr_u16(out, s_tile_count(&msg->u.tile, i));
         break;
     case PF_MSG_RESULT:
         W(pf_wr_u32(out, res->tile));
@@ -851,6 +834,7 @@ static void s_dec_body(s_dec_t *d, pf_msg_t *m)
         m->u.tile.y0 = s_u32(d, "y0");
         m->u.tile.w = s_u32(d, "w");
         m->u.tile.h = s_u32(d, "h");
+        s_tile_counts(d, &m->u.tile);
         break;
     case PF_MSG_RESULT: {
         pf_msg_result_t *res = &m->u.result;
@@ -968,6 +952,12 @@ int pf_msg_decode(const uint8_t *frame, size_t len, pf_msg_t *msg, char *why, si
         return PF_EPARSE;
     }
     return PF_OK;
+}
+
+uint16_t pf_msg_tile_count(const pf_msg_tile_t *t, uint32_t i)
+{
+    const uint8_t *q = t->counts_le + 2 * (size_t)i;
+    return (uint16_t)(q[0] | q[1] << 8);
 }
 
 void pf_msg_result_pixels(const pf_msg_result_t *r, float *dst)

@@ -55,13 +55,14 @@
 #include "scene/scene.h"
 
 #define PF_PROTO_MAGIC 0x4d524650u /* "PFRM" read as little-endian bytes 'P','F','R','M' */
-#define PF_PROTO_VERSION 7 /* 3: settings carry the progressive pass; 4: and the pixel filter; 5: PHOTON_REQ, PHOTONS;
+#define PF_PROTO_VERSION 8 /* 3: settings carry the progressive pass; 4: and the pixel filter; 5: PHOTON_REQ, PHOTONS;
                               6: HELLO carries peer_port, BLOB_PLAN (fan-out),
-                              settings.path_max_depth; 7: IRR_REQ, IRR_POINTS */
+                              settings.path_max_depth; 7: IRR_REQ, IRR_POINTS; 8: TILE carries per-pixel samples */
 #define PF_PROTO_HEADER_SIZE 16
 #define PF_PROTO_MAX_STRING PF_WIRE_MAX_STRING
 #define PF_PROTO_CHUNK_SIZE (1u << 20)            /* blob chunk payload */
 #define PF_PROTO_MAX_TILE_PIXELS (256u * 256u)    /* a RESULT carries at most this many pixels */
+#define PF_PROTO_MAX_TILE_COUNTS (4u * PF_PROTO_MAX_TILE_PIXELS) /* per-pixel samples a TILE carries at most */
 #define PF_PROTO_MAX_MESSAGE (PF_PROTO_CHUNK_SIZE + 4096u) /* ZMQ_MAXMSGSIZE on both sides */
 #define PF_PROTO_MAX_BATCHES (1u << 20)          /* photon batches a pass has at most */
 #define PF_PROTO_MAX_REQ_BATCHES 64u             /* batches one PHOTON_REQ asks for at most */
@@ -161,6 +162,14 @@ typedef struct pf_msg_ready {
 typedef struct pf_msg_tile {
     uint32_t tile, attempt;
     uint32_t x0, y0, w, h;   /* w * h <= PF_PROTO_MAX_TILE_PIXELS */
+    /* Adaptive progressive passes: the camera samples of each pixel of the
+     * rectangle (cx0, cy0, cw, ch), which covers the tile and its
+     * first-gather border (render.h's pf_spp_map_t), row by row, each >= 1;
+     * cw * ch <= PF_PROTO_MAX_TILE_COUNTS. cw * ch == 0: settings.spp
+     * everywhere. On the wire: 4 u32, then cw * ch u16. */
+    uint32_t cx0, cy0, cw, ch;
+    const uint8_t *counts_le; /* decode: inside the frame (pf_msg_tile_count) */
+    const uint16_t *counts;   /* encode */
 } pf_msg_tile_t;
 
 typedef struct pf_msg_result {
@@ -268,6 +277,9 @@ int pf_msg_decode(const uint8_t *frame, size_t len, pf_msg_t *msg, char *why, si
 
 /* Copies a decoded RESULT's pixels into dst (w*h*3 floats). */
 void pf_msg_result_pixels(const pf_msg_result_t *r, float *dst);
+
+/* Count i (< cw * ch) of a decoded TILE. */
+uint16_t pf_msg_tile_count(const pf_msg_tile_t *t, uint32_t i);
 
 /* Photon i (< p->n) of a decoded PHOTONS. */
 void pf_msg_photon_get(const pf_msg_photons_t *p, uint32_t i, pf_msg_photon_t *out);

@@ -771,7 +771,19 @@ struct pf_tile_plan {
     int R, filter;
     pf_filter_grid_t grid; /* the tile and its border, clipped to the image */
     float *probe;          /* the emitters' edges (pixel_impl.h), or NULL */
+    const pf_spp_map_t *map; /* per-pixel samples (adaptive passes), or NULL: pt everywhere */
 };
+
+/* Pixel (px, py)'s sampling pattern in plan p: its own count from the map
+ * (which must cover it), else the settings' spp. */
+static pf_pattern_t s_plan_pattern(const pf_tile_plan_t *p, int px, int py)
+{
+    const pf_spp_map_t *m = p->map;
+    if (!m)
+        return p->pt;
+    PF_CHECK(px >= m->x0 && px < m->x0 + m->w && py >= m->y0 && py < m->y0 + m->h);
+    return pf_pattern_make(m->n[(size_t)(py - m->y0) * (size_t)m->w + (size_t)(px - m->x0)]);
+}
 
 static s_state *s_state_new(const pf_render_ctx_t *ctx, int filtering)
 {
@@ -789,9 +801,16 @@ static s_state *s_state_new(const pf_render_ctx_t *ctx, int filtering)
 
 pf_tile_plan_t *pf_tile_plan_new(const pf_render_ctx_t *ctx, int x0, int y0, int w, int h)
 {
+    return pf_tile_plan_new_map(ctx, x0, y0, w, h, NULL);
+}
+
+pf_tile_plan_t *pf_tile_plan_new_map(const pf_render_ctx_t *ctx, int x0, int y0, int w, int h,
+                                     const pf_spp_map_t *map)
+{
     pf_tile_plan_t *p = calloc(1, sizeof *p);
     PF_CHECK(p != NULL);
     p->ctx = ctx;
+    p->map = map ? map : ctx->spp_map;
     p->pt = pf_pattern_make(ctx->settings.spp);
     p->x0 = x0, p->y0 = y0, p->w = w, p->h = h;
     p->R = ctx->settings.gather_filter;
@@ -811,8 +830,10 @@ static void s_record_row(void *user, int row)
     pf_tile_plan_t *p = user;
     s_state *st = s_state_new(p->ctx, 0);
     int py = p->grid.ry0 + row;
-    for (int px = p->grid.rx0; px < p->grid.rx0 + p->grid.rw; px++)
-        s_record_pixel(st, &p->pt, px, py, pf_filter_grid_at(&p->grid, px, py));
+    for (int px = p->grid.rx0; px < p->grid.rx0 + p->grid.rw; px++) {
+        pf_pattern_t pt = s_plan_pattern(p, px, py);
+        s_record_pixel(st, &pt, px, py, pf_filter_grid_at(&p->grid, px, py));
+    }
     free(st);
 }
 
@@ -839,13 +860,14 @@ void pf_tile_plan_render_row(pf_tile_plan_t *p, int row, float *out)
         st->caustic_valid = 0;
         /* on an emitter's edge, PF_EDGE_SAMPLES samples more (pixel_impl.h) */
         int edge = pf_edges_pixel(p->probe, p->x0, p->y0, p->w, px, py);
-        int n = p->pt.spp + (edge ? PF_EDGE_SAMPLES : 0);
+        pf_pattern_t pt = s_plan_pattern(p, px, py);
+        int n = pt.spp + (edge ? PF_EDGE_SAMPLES : 0);
         pf_edge_strata_t strata;
         if (edge)
             pf_edges_strata(ctx, px, py, &strata);
         for (int s = 0; s < n; s++) {
             pf_film_t film;
-            pf_ray_t ray = s_camera_sample(st, &p->pt, px, py, s, &strata, &film);
+            pf_ray_t ray = s_camera_sample(st, &pt, px, py, s, &strata, &film);
             pf_vec3 L = s_radiance(st, ray, 0, pf_v3s(1.0f), 1, 1);
             if (!pf_is_finite3(L) || L.x < 0.0f || L.y < 0.0f || L.z < 0.0f) {
                 /* never let a NaN or negative sample reach the image, but say so */

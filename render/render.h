@@ -26,6 +26,18 @@ enum {
     PF_TERM_PHOTONMAP = 16, /* debugging: the global map's radiance at the visible point, no gather */
 };
 
+/* Camera samples per pixel over a rectangle of the image, for adaptive
+ * progressive passes (coordinator/adapt.h): pixel (x, y) takes
+ * n[(y - y0) * w + (x - x0)] >= 1 samples instead of settings.spp. A tile's
+ * map must cover the tile and its first-gather filter border
+ * (settings.gather_filter pixels, clipped to the image): the border
+ * pixels' records are made from their own counts, as their own tiles make
+ * them, so the pixels still do not depend on the tiling. */
+typedef struct pf_spp_map {
+    int x0, y0, w, h;
+    const uint16_t *n;
+} pf_spp_map_t;
+
 typedef struct pf_render_ctx {
     const pf_scene_t *scene;
     const pf_accel_t *accel;
@@ -47,6 +59,10 @@ typedef struct pf_render_ctx {
     /* The photon estimates' disc shrink of this progressive pass
      * (pf_pass_shrink2(settings.pass); 1 for pass 0). */
     float shrink2;
+    /* Per-pixel camera samples of this pass (adaptive passes), covering
+     * the whole image, or NULL: settings.spp everywhere (what
+     * pf_render_ctx_init leaves). */
+    const pf_spp_map_t *spp_map;
 } pf_render_ctx_t;
 
 /* The sum of final-gather rays' radiances, each exactly as the integrator
@@ -73,6 +89,11 @@ void pf_render_tile(const pf_render_ctx_t *ctx, int x0, int y0, int w, int h, fl
  * ahead (once; thread-safe). The pixels are those pf_render_tile gives. */
 typedef struct pf_tile_plan pf_tile_plan_t;
 pf_tile_plan_t *pf_tile_plan_new(const pf_render_ctx_t *ctx, int x0, int y0, int w, int h);
+/* The same with the per-pixel samples of map (covering the tile and its
+ * border; NULL: ctx->spp_map) rather than ctx->spp_map: a worker's tiles
+ * each bring their own. */
+pf_tile_plan_t *pf_tile_plan_new_map(const pf_render_ctx_t *ctx, int x0, int y0, int w, int h,
+                                     const pf_spp_map_t *map);
 int pf_tile_plan_record_rows(const pf_tile_plan_t *p);
 void pf_tile_plan_record_row(pf_tile_plan_t *p, int row);
 void pf_tile_plan_render_row(pf_tile_plan_t *p, int row, float *out);

@@ -65,6 +65,7 @@ void pf_w_work_free(s_work *it)
     free(it->irr_pts);
     free(it->irr_n);
     free(it->rgb);
+    free(it->counts);
     pf_w_job_release(it->job);
     free(it);
 }
@@ -116,7 +117,8 @@ static void s_compute_tile(s_worker *w, s_work *it)
     int x0 = (int)it->tile.x0, y0 = (int)it->tile.y0, tw = (int)it->tile.w, th = (int)it->tile.h;
     float *out = it->rgb;
     double t0 = pf_now();
-    pf_tile_plan_t *plan = pf_tile_plan_new(ctx, x0, y0, tw, th);
+    pf_spp_map_t map = { (int)it->tile.cx0, (int)it->tile.cy0, (int)it->tile.cw, (int)it->tile.ch, it->counts };
+    pf_tile_plan_t *plan = pf_tile_plan_new_map(ctx, x0, y0, tw, th, it->counts ? &map : NULL);
 #pragma omp parallel num_threads(w->threads)
     {
         pf_accel_thread_init();

@@ -499,6 +499,26 @@ static int s_tile_admissible(s_worker *w, const s_job *j, const pf_msg_tile_t *t
     return 1;
 }
 
+/* An adaptive pass's counts (if any) must cover the tile and its
+ * first-gather border within the image, as the render reads them. Else 0,
+ * after a warning. */
+static int s_tile_counts_cover(s_worker *w, const s_job *j, uint64_t job, const pf_msg_tile_t *t)
+{
+    if ((uint64_t)t->cw * t->ch == 0)
+        return 1;
+    int64_t R = j->desc.settings.gather_filter > 0 ? j->desc.settings.gather_filter : 0;
+    int64_t W = j->desc.settings.width, H = j->desc.settings.height;
+    int64_t x0 = (int64_t)t->x0 - R, y0 = (int64_t)t->y0 - R;
+    int64_t x1 = (int64_t)t->x0 + t->w + R, y1 = (int64_t)t->y0 + t->h + R;
+    x0 = x0 < 0 ? 0 : x0, y0 = y0 < 0 ? 0 : y0, x1 = x1 > W ? W : x1, y1 = y1 > H ? H : y1;
+    if ((int64_t)t->cx0 <= x0 && (int64_t)t->cy0 <= y0 && (int64_t)t->cx0 + t->cw >= x1 &&
+        (int64_t)t->cy0 + t->ch >= y1)
+        return 1;
+    pf_w_log(w, PF_LOG_WARN, "TILE %" PRIu32 " of job %" PRIu64 ": its per-pixel counts do not cover the tile and "
+             "its border; dropped", t->tile, job);
+    return 0;
+}
+
 void pf_w_on_tile(s_worker *w, const pf_msg_t *m)
 {
     const pf_msg_tile_t *t = &m->u.tile;
@@ -524,13 +544,16 @@ void pf_w_on_tile(s_worker *w, const pf_msg_t *m)
                  t->x0, t->y0, W, H);
         return;
     }
-    if (!s_tile_admissible(w, j, t))
+    if (!s_tile_admissible(w, j, t) || !s_tile_counts_cover(w, j, m->job, t))
         return;
     s_work *it = calloc(1, sizeof *it);
     float *rgb = malloc((size_t)t->w * t->h * 3 * sizeof *rgb);
-    if (!it || !rgb) {
+    size_t nc = (size_t)t->cw * t->ch;
+    uint16_t *counts = nc ? malloc(nc * sizeof *counts) : NULL;
+    if (!it || !rgb || (nc && !counts)) {
         free(it);
         free(rgb);
+        free(counts);
         pf_w_log(w, PF_LOG_ERROR, "out of memory for TILE %" PRIu32, t->tile);
         return;
     }
@@ -538,6 +561,11 @@ void pf_w_on_tile(s_worker *w, const pf_msg_t *m)
     it->job = j;
     j->refs++;
     it->tile = *t;
+    it->tile.counts_le = NULL;
+    it->tile.counts = NULL;
+    for (size_t i = 0; i < nc; i++)
+        counts[i] = pf_msg_tile_count(t, (uint32_t)i);
+    it->counts = counts;
     it->rgb = rgb;
     w->tiles_held++;
     j->held_tiles[j->held].tile = t->tile;

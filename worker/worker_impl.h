@@ -120,7 +120,8 @@ typedef struct s_work {
     s_work_kind kind;
     s_job *job;
     /* S_WORK_TILE */
-    pf_msg_tile_t tile;
+    pf_msg_tile_t tile;   /* its counts pointers cleared: the frame is gone */
+    uint16_t *counts;     /* an adaptive pass's samples over tile.cx0.. (render.h's pf_spp_map_t), or NULL */
     float *rgb;
     uint32_t render_us;
     int rendered; /* every row done (not cancelled half-way) */

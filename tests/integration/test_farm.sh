@@ -166,6 +166,7 @@ tiles_of() {
 }
 
 gt() { [ "$1" -gt "$2" ]; }
+differs() { [ -s "$1" ] && [ -s "$2" ] && ! cmp -s "$1" "$2"; }
 ge() { [ "$1" -ge "$2" ]; }
 eq() { [ "$1" = "$2" ]; }
 has() { grep -qE "$2" "$1" 2>/dev/null; }
@@ -181,6 +182,8 @@ SMALL=(--size 96x96 --spp 4 --photons 50000 --caustic-photons 50000 --gather 8)
 BIG=(--size 192x192 --spp 25 --photons 50000 --caustic-photons 50000 --gather 8)
 # Four progressive passes of a few seconds in all.
 PROG=(--size 128x128 --spp 6 --photons 30000 --caustic-photons 30000 --gather 4 --passes 4)
+# The same, every pass uniform (passes after the first are adaptive by default).
+PROG_UNI=("${PROG[@]}" --no-adaptive)
 FARM=(--tile 16 --heartbeat-ms 200)
 # A photon pass of several seconds before a tiny image (glass: caustic batches too;
 # k 300: irradiance estimates long enough that workers, which fetch the global
@@ -241,7 +244,7 @@ completed() {
 references() {
     echo "# references: in-process renders (--workers 0)"
     local r rname rscene rset
-    for r in spheres:$SPHERES:SMALL box:$BOX:SMALL big:$SPHERES:BIG prog:$SPHERES:PROG phot:$SPHERES:PHOT; do
+    for r in spheres:$SPHERES:SMALL box:$BOX:SMALL big:$SPHERES:BIG prog:$SPHERES:PROG prog_uni:$SPHERES:PROG_UNI phot:$SPHERES:PHOT; do
         IFS=: read -r rname rscene rset <<<"$r"
         local -n rs=$rset
         if ! timeout 120 "$PF" render "$rscene" -o "$T/ref_$rname.png" --hdr "$T/ref_$rname.pfm" "${rs[@]}" \
@@ -626,6 +629,10 @@ t10() {
     if completed "10: four passes complete after kill -9 of a worker" "$T/prog_coord.err"; then
         check "10: the image of four passes is bit-identical to in-process" same "$T/prog_coord.pfm" "$T/ref_prog.pfm"
         check "10: the log has the fourth pass" logged "$T/prog_coord.err" "pass 4: 6 spp"
+        check "10: passes 2 to 4 put their samples by the error so far" logged "$T/prog_coord.err" \
+            "pass 2: 6 spp \(adaptive, [0-9]+\.\.[0-9]+ per pixel\)"
+        check "10: adaptive passes change the image (--no-adaptive in process differs)" \
+            differs "$T/ref_prog.pfm" "$T/ref_prog_uni.pfm"
         check "10: each pass's photon pass says how it was spread" logged "$T/prog_coord.err" \
             "photon pass 4: [0-9]+ batches of [0-9]+ photons, [0-9]+ traced on the coordinator, [0-9]+ on the workers"
         summary_note 10 "$T/prog_coord.err"

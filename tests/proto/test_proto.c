@@ -134,7 +134,7 @@ static void s_sample(int type, pf_msg_t *m)
         m->u.ready.credit = 4;
         break;
     case PF_MSG_TILE:
-        m->u.tile = (pf_msg_tile_t){ 17, 2, 64, 32, 32, 16 };
+        m->u.tile = (pf_msg_tile_t){ .tile = 17, .attempt = 2, .x0 = 64, .y0 = 32, .w = 32, .h = 16 };
         break;
     case PF_MSG_RESULT: {
         const float v[18] = { 0.0f, -0.0f, 1.0f, 0.5f, 1e30f, 1e-40f, 3.25f, 0.125f, 7.0f,

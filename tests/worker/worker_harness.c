@@ -500,7 +500,8 @@ pf_msg_t wt_tile_msg(uint64_t job, uint32_t tile, uint32_t attempt, int x0, int 
     memset(&m, 0, sizeof m);
     m.type = PF_MSG_TILE;
     m.job = job;
-    m.u.tile = (pf_msg_tile_t){ tile, attempt, (uint32_t)x0, (uint32_t)y0, (uint32_t)w, (uint32_t)h };
+    m.u.tile = (pf_msg_tile_t){ .tile = tile, .attempt = attempt, .x0 = (uint32_t)x0, .y0 = (uint32_t)y0,
+                                .w = (uint32_t)w, .h = (uint32_t)h };
     return m;
 }
 
