@@ -45,6 +45,7 @@
 #include "base/sampling.h"
 #include "light/envlight.h"
 #include "light/lightbvh.h"
+#include "light/lighttab.h"
 
 typedef enum { S_AREA, S_POINT, S_DISTANT, S_INFINITE, S_ENVMAP } s_kind;
 
@@ -113,6 +114,10 @@ struct pf_lights {
     uint32_t *unb;
     double *unb_cdf; /* nunb + 1 entries */
     size_t nunb;
+    /* Lookup tables (lighttab.h): guides over cdf and dcdf (one when they
+     * are one), the area entries' records, entries [0, narea). */
+    pf_cdf_guide_t cdf_guide, dcdf_guide;
+    pf_emit_tri_t *tris;
 };
 
 float pf_spot_falloff(const pf_light_t *l, float cos_theta)
@@ -395,6 +400,17 @@ static int s_build_pick(pf_lights_t *self, const pf_scene_t *scene)
     return 0;
 }
 
+/* The lookup tables (see the struct); nonzero when out of memory. */
+static int s_build_tables(pf_lights_t *self, const pf_scene_t *scene)
+{
+    self->tris = malloc((self->narea ? self->narea : 1) * sizeof *self->tris);
+    if (!self->tris || pf_cdf_guide_build(&self->cdf_guide, self->cdf, self->n))
+        return 1;
+    for (size_t i = 0; i < self->narea; i++)
+        self->tris[i] = pf_emit_tri_make(scene, self->entries[i].mesh, self->entries[i].tri, self->entries[i].area);
+    return self->dcdf != self->cdf && pf_cdf_guide_build(&self->dcdf_guide, self->dcdf, self->n);
+}
+
 pf_lights_t *pf_lights_build(const pf_scene_t *scene)
 {
     pf_lights_t *self = calloc(1, sizeof *self);
@@ -467,7 +483,7 @@ pf_lights_t *pf_lights_build(const pf_scene_t *scene)
     for (size_t i = 0; i < self->n; i++)
         self->cdf[i] /= acc;
     self->cdf[self->n] = 1.0;
-    if (s_direct_table(self)) {
+    if (s_direct_table(self) || s_build_tables(self, scene)) {
         pf_lights_destroy(&self);
         return NULL;
     }
@@ -498,6 +514,9 @@ void pf_lights_destroy(pf_lights_t **self_p)
     pf_lightbvh_destroy(&(*self_p)->bvh);
     free((*self_p)->unb);
     free((*self_p)->unb_cdf);
+    free((*self_p)->tris);
+    pf_cdf_guide_free(&(*self_p)->cdf_guide);
+    pf_cdf_guide_free(&(*self_p)->dcdf_guide);
     free(*self_p);
     *self_p = NULL;
 }
@@ -548,14 +567,8 @@ size_t pf_lights_count(const pf_lights_t *self) { return self->n; }
  * *pmf its probability. */
 static size_t s_pick(const pf_lights_t *self, const double *cdf, float u, double *pmf)
 {
-    size_t lo = 0, hi = self->n;
-    while (hi - lo > 1) {
-        size_t mid = (lo + hi) / 2;
-        if (cdf[mid] <= u)
-            lo = mid;
-        else
-            hi = mid;
-    }
+    const pf_cdf_guide_t *g = cdf == self->cdf ? &self->cdf_guide : &self->dcdf_guide;
+    size_t lo = pf_cdf_guide_pick(g, cdf, self->n, u);
     *pmf = cdf[lo + 1] - cdf[lo];
     return lo;
 }
@@ -600,20 +613,12 @@ static size_t s_pick_direct(const pf_lights_t *self, pf_vec3 x, pf_vec3 n, float
 }
 
 /* A uniform point on an emissive triangle, its unit face normal and error bound. */
-static void s_tri_point(const pf_scene_t *scene, const s_entry *e, float u1, float u2, pf_vec3 *p, pf_vec3 *n,
+static void s_tri_point(const pf_lights_t *self, const s_entry *e, float u1, float u2, pf_vec3 *p, pf_vec3 *n,
                         pf_vec3 *perr)
 {
-    const pf_mesh_t *mesh = &scene->meshes[e->mesh];
-    const uint32_t *v = &mesh->idx[3 * e->tri];
-    pf_vec3 p0 = mesh->pos[v[0]], p1 = mesh->pos[v[1]], p2 = mesh->pos[v[2]];
-    float b0, b1;
-    pf_sample_triangle(u1, u2, &b0, &b1);
-    float b2 = 1.0f - b0 - b1;
-    *p = pf_add(pf_add(pf_scale(p0, b0), pf_scale(p1, b1)), pf_scale(p2, b2));
-    *n = pf_norm(pf_cross(pf_sub(p1, p0), pf_sub(p2, p0)));
-    if (mesh->nrm) /* as in accel.c: vertex normals orient the face */
-        *n = pf_face_forward(*n, pf_add(pf_add(mesh->nrm[v[0]], mesh->nrm[v[1]]), mesh->nrm[v[2]]));
-    *perr = pf_tri_point_error(p0, p1, p2, b0, b1, b2);
+    const pf_emit_tri_t *t = &self->tris[e - self->entries];
+    *p = pf_emit_tri_point(t, u1, u2, perr);
+    *n = t->n;
 }
 
 int pf_lights_sample_direct(const pf_lights_t *self, const pf_scene_t *scene, pf_vec3 x, const float u[3],
@@ -631,10 +636,9 @@ int pf_lights_sample_direct_at(const pf_lights_t *self, const pf_scene_t *scene,
     size_t pick = s_pick_direct(self, x, n, u[0], &pmf);
     if (pick == SIZE_MAX || !(pmf > 0.0))
         return 0;
-    const s_entry *e = &self->entries[pick];
-    if (e->kind == S_AREA) {
-        pf_vec3 p, n, perr;
-        s_tri_point(scene, e, u[1], u[2], &p, &n, &perr);
+    if (pick < self->narea) { /* an area entry: its record alone */
+        const pf_emit_tri_t *t = &self->tris[pick];
+        pf_vec3 p = pf_emit_tri_point(t, u[1], u[2], NULL), n = t->n;
         pf_vec3 d = pf_sub(p, x);
         float d2 = pf_len2(d);
         if (!(d2 > 0.0f))
@@ -644,14 +648,15 @@ int pf_lights_sample_direct_at(const pf_lights_t *self, const pf_scene_t *scene,
         float cos_l = -pf_dot(wi, n);
         if (cos_l <= 0.0f)
             return 0; /* one-sided: x is behind the emitter */
-        pf_vec3 le = scene->mats[scene->meshes[e->mesh].mat[e->tri]].le;
-        float pdf_area = (float)pmf / e->area;
+        pf_vec3 le = t->le;
+        float pdf_area = (float)pmf / t->area;
         out->wi = wi;
         out->dist = dist;
         out->weight = pf_scale(le, cos_l / (d2 * pdf_area));
         out->pdf = pdf_area * d2 / cos_l;
         return 1;
     }
+    const s_entry *e = &self->entries[pick];
     if (e->kind == S_ENVMAP || (e->kind == S_INFINITE && self->nenv))
         return s_sky_mixture(self, e, n, u, out);
     if (e->kind == S_INFINITE) {
@@ -720,13 +725,7 @@ float pf_lights_pdf_at(const pf_lights_t *self, const pf_scene_t *scene, pf_vec3
     if (lo == self->narea || self->entries[lo].mesh != geom || self->entries[lo].tri != prim)
         return 0.0f;
     const s_entry *e = &self->entries[lo];
-    /* the normal exactly as s_tri_point makes it */
-    const pf_mesh_t *mesh = &scene->meshes[e->mesh];
-    const uint32_t *v = &mesh->idx[3 * e->tri];
-    pf_vec3 p0 = mesh->pos[v[0]], p1 = mesh->pos[v[1]], p2 = mesh->pos[v[2]];
-    pf_vec3 n = pf_norm(pf_cross(pf_sub(p1, p0), pf_sub(p2, p0)));
-    if (mesh->nrm)
-        n = pf_face_forward(n, pf_add(pf_add(mesh->nrm[v[0]], mesh->nrm[v[1]]), mesh->nrm[v[2]]));
+    pf_vec3 n = self->tris[lo].n; /* the normal exactly as s_tri_point gives it */
     pf_vec3 d = pf_sub(p, x);
     float d2 = pf_len2(d);
     if (!(d2 > 0.0f))
@@ -765,7 +764,7 @@ int pf_lights_emit(const pf_lights_t *self, const pf_scene_t *scene, const float
     const s_entry *e = &self->entries[s_pick(self, self->cdf, u[0], &pmf)];
     if (e->kind == S_AREA) {
         pf_vec3 p, n, perr;
-        s_tri_point(scene, e, u[1], u[2], &p, &n, &perr);
+        s_tri_point(self, e, u[1], u[2], &p, &n, &perr);
         pf_vec3 local = pf_sample_cosine(u[3], u[4]);
         pf_vec3 le = scene->mats[scene->meshes[e->mesh].mat[e->tri]].le;
         /* Le cos / (pdf_area pdf_dir) = Le cos / ((pmf / A) (cos / pi)) = Le A pi / pmf. */
@@ -943,7 +942,7 @@ int pf_lights_emit_targeted(const pf_lights_t *self, const pf_scene_t *scene, co
     pf_vec3 p, n = pf_v3s(0.0f), perr = pf_v3s(0.0f);
     const pf_light_t *l = NULL;
     if (e->kind == S_AREA) {
-        s_tri_point(scene, e, u[1], u[2], &p, &n, &perr);
+        s_tri_point(self, e, u[1], u[2], &p, &n, &perr);
     } else {
         l = &scene->lights[e->light];
         p = l->pos;
