@@ -249,19 +249,6 @@ static int s_direct_table(pf_lights_t *self)
     return 0;
 }
 
-/* The unit face normal of an emissive triangle, oriented as s_tri_point's. */
-static pf_vec3 s_tri_normal(const pf_scene_t *scene, uint32_t m, uint32_t t, pf_vec3 *p)
-{
-    const pf_mesh_t *mesh = &scene->meshes[m];
-    const uint32_t *v = &mesh->idx[3 * t];
-    for (int k = 0; k < 3; k++)
-        p[k] = mesh->pos[v[k]];
-    pf_vec3 n = pf_norm(pf_cross(pf_sub(p[1], p[0]), pf_sub(p[2], p[0])));
-    if (mesh->nrm)
-        n = pf_face_forward(n, pf_add(pf_add(mesh->nrm[v[0]], mesh->nrm[v[1]]), mesh->nrm[v[2]]));
-    return n;
-}
-
 /* pbrt's LightBounds of a bounded entry (area, point, spot): an area
  * triangle one-sided along its normal, light leaving over pi/2 about it; a
  * point light in every direction; a spot in its inner cone, spreading to the
@@ -272,10 +259,10 @@ static pf_light_bounds_t s_entry_bounds(const pf_lights_t *self, const pf_scene_
     pf_light_bounds_t b = { .phi = 0.0f, .w = pf_v3(0, 0, 1), .cos_theta_o = -1.0f, .cos_theta_e = 0.0f };
     double p = self->power * (self->cdf[i + 1] - self->cdf[i]);
     if (e->kind == S_AREA) {
-        pf_vec3 v[3];
-        b.w = s_tri_normal(scene, e->mesh, e->tri, v);
-        b.lo = pf_vmin(v[0], pf_vmin(v[1], v[2]));
-        b.hi = pf_vmax(v[0], pf_vmax(v[1], v[2]));
+        const pf_emit_tri_t *t = &self->tris[i]; /* built before (s_build_tables) */
+        b.w = t->n;
+        b.lo = pf_vmin(t->p0, pf_vmin(t->p1, t->p2));
+        b.hi = pf_vmax(t->p0, pf_vmax(t->p1, t->p2));
         b.cos_theta_o = 1.0f;
         b.phi = (float)p;
         return b;
@@ -532,10 +519,22 @@ pf_vec3 pf_lights_sky(const pf_lights_t *self, pf_vec3 d)
 
 float pf_lights_sky_pdf(const pf_lights_t *self, pf_vec3 n, pf_vec3 d)
 {
-    float pdf = pf_is_black(n) ? self->sky_pmf / (4.0f * PF_PI) : self->sky_pmf * fmaxf(0.0f, pf_dot(n, d)) * PF_INV_PI;
-    for (size_t i = 0; i < self->nenv; i++)
-        pdf += self->env[i].pmf * pf_envlight_pdf(&self->env[i], d);
+    float pdf;
+    pf_lights_sky_mis(self, n, d, &pdf);
     return pdf;
+}
+
+pf_vec3 pf_lights_sky_mis(const pf_lights_t *self, pf_vec3 n, pf_vec3 d, float *pdf)
+{
+    pf_vec3 L = self->sky;
+    float p = pf_is_black(n) ? self->sky_pmf / (4.0f * PF_PI) : self->sky_pmf * fmaxf(0.0f, pf_dot(n, d)) * PF_INV_PI;
+    for (size_t i = 0; i < self->nenv; i++) { /* one map lookup for both */
+        pf_vec3 le = pf_envlight_le(&self->env[i], d);
+        L = pf_add(L, le);
+        p += self->env[i].pmf * pf_envlight_pdf_le(&self->env[i], le);
+    }
+    *pdf = p;
+    return L;
 }
 
 /* A sky direction drawn by the picked sky entry e (constant: uniform, or
@@ -551,8 +550,8 @@ static int s_sky_mixture(const pf_lights_t *self, const s_entry *e, pf_vec3 n, c
         wi = pf_sample_sphere(u[1], u[2]);
     else
         wi = pf_to_world(pf_sample_cosine(u[1], u[2]), n);
-    float pdf = pf_lights_sky_pdf(self, n, wi);
-    pf_vec3 L = pf_lights_sky(self, wi);
+    float pdf;
+    pf_vec3 L = pf_lights_sky_mis(self, n, wi, &pdf);
     if (!(pdf > 0.0f) || pf_is_black(L))
         return 0;
     out->wi = wi;

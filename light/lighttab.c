@@ -32,15 +32,33 @@ static size_t s_bisect(const double *cdf, size_t lo, size_t hi, double u)
     return lo;
 }
 
+unsigned pf_guide_bits(size_t n, size_t per)
+{
+    unsigned bits = 1;
+    while (bits < S_MAX_BITS && ((size_t)1 << bits) * per < n)
+        bits++;
+    return bits;
+}
+
+void pf_fcdf_guide_fill(uint32_t *at, unsigned bits, const float *c, int n)
+{
+    uint32_t k = (uint32_t)1 << bits;
+    int i = 0;
+    for (uint32_t j = 0; j <= k; j++) {
+        float v = (float)j / (float)k;
+        while (i + 1 < n && c[i + 1] <= v)
+            i++;
+        at[j] = (uint32_t)i;
+    }
+}
+
 int pf_cdf_guide_build(pf_cdf_guide_t *g, const double *cdf, size_t n)
 {
     g->at = NULL;
     g->bits = 0;
     if (n < 2)
         return 0; /* nothing to bisect */
-    unsigned bits = 1;
-    while (bits < S_MAX_BITS && ((size_t)1 << bits) < n)
-        bits++;
+    unsigned bits = pf_guide_bits(n, 1);
     size_t k = (size_t)1 << bits;
     uint32_t *at = malloc((k + 1) * sizeof *at);
     if (!at)

@@ -35,6 +35,28 @@ void pf_cdf_guide_free(pf_cdf_guide_t *g);
  * when g has one; bit for bit the same index for every u. */
 size_t pf_cdf_guide_pick(const pf_cdf_guide_t *g, const double *cdf, size_t n, float u);
 
+/* The same over a float cdf c[0..n] (envlight.c's rows and columns):
+ * at[0..2^bits] filled from c, which must stay unchanged. */
+void pf_fcdf_guide_fill(uint32_t *at, unsigned bits, const float *c, int n);
+
+/* The range [*lo, *hi) of [0, n) that holds the last i with c[i] <= u, for
+ * a bisection that keeps its invariant (see lighttab.c): [0, n) when u is
+ * outside [0, 1) or there is no guide (at NULL). */
+static inline void pf_fcdf_guide_range(const uint32_t *at, unsigned bits, int n, float u, int *lo, int *hi)
+{
+    float f = u * (float)((uint32_t)1 << bits); /* exact: a power of two */
+    if (!at || !(u >= 0.0f) || !(f < (float)((uint32_t)1 << bits))) {
+        *lo = 0, *hi = n;
+        return;
+    }
+    uint32_t j = (uint32_t)f;
+    int h = (int)at[j + 1] + 1;
+    *lo = (int)at[j], *hi = h < n ? h : n;
+}
+
+/* The guide's bits for a cdf of n entries: about one bucket per `per` entries. */
+unsigned pf_guide_bits(size_t n, size_t per);
+
 /* An emissive triangle as light.c samples it: p0, p1, p2 its vertices, n
  * its unit face normal oriented by the vertex normals (as accel.c does),
  * le the material's radiance, area as the light table computed it. */
