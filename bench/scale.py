@@ -17,8 +17,12 @@ links' bandwidth and latency:
   worker build  each worker builds its Embree scene, reads the maps and
                 fills its irradiance texels (in parallel on every worker)
   tiles         the tiles go to W x threads slots, one tile per core at a
-                time (whole rounds: the last round is what granularity
-                costs); the coordinator handles one RESULT at a time (its
+                time, in queue order, each to the slot free first; the
+                last quarter of the grid is split in four
+                (coordinator/leases.c), so the round that is not full
+                costs a quarter tile; a split tile's pixels cost
+                SPLIT_TILE_COST times more (the first-gather filter's
+                border); the coordinator handles one RESULT at a time (its
                 per-message cost) and receives 12 bytes a pixel
   distributed tracing (switch): workers get the scene first, trace the
                 photons in parallel and upload the photon records (32 bytes
@@ -48,6 +52,7 @@ Standard library only. Plots are SVG written here (no matplotlib needed).
 
 import argparse
 import datetime
+import heapq
 import json
 import math
 import os
@@ -66,6 +71,14 @@ CHUNK = 1 << 20           # proto/messages.h PF_PROTO_CHUNK_SIZE
 WINDOW = 8 * CHUNK        # coordinator's blob window per worker
 PHOTON_BYTES = 32         # a photon record on the wire (docs/benchmarks.md)
 RESULT_BYTES_PER_PIXEL = 12
+# A split tile's (side 16) cost per pixel over a whole one's (side 32): each
+# camera sample records first-gather filter samples over the tile and its
+# border of 2 pixels, (s + 4)^2 / s^2 of the tile's, at REC_OVER_RENDER the
+# cost of the sample's own rendering (the time-limit probe on the dining
+# room, `photonfarm render DINING --size 320x180 --time-limit 12 -v`: 0.550 s
+# for 138,240 recorded samples, 0.511 s for 61,440 rendered: 3.98 / 8.32 us).
+REC_OVER_RENDER = 3.98 / 8.32
+SPLIT_TILE_COST = (REC_OVER_RENDER * 20 ** 2 / 16 ** 2 + 1) / (REC_OVER_RENDER * 36 ** 2 / 32 ** 2 + 1)
 
 # Scenes of the model: (name, scene, full size, render options, size at
 # which the per-pixel render cost is measured).
@@ -308,7 +321,43 @@ def cmd_measure(args):
 # ---------------------------------------------------------------- the model
 
 def tiles_of(w, h, tile):
-    return math.ceil(w / tile) * math.ceil(h / tile)
+    return len(tile_layout(w, h, tile))
+
+
+def tile_layout(w, h, tile):
+    """The farm's tiles in queue order, as (pixels, split) pairs: the grid
+    in row order, its last quarter in quarters (coordinator/leases.c,
+    pf_leases_init)."""
+    tx, ty = math.ceil(w / tile), math.ceil(h / tile)
+    grid = tx * ty
+    tail = grid // 4 if tile >= 16 else 0
+    half = (tile + 1) // 2
+    out = []
+    for i in range(grid):
+        x0, y0 = (i % tx) * tile, (i // tx) * tile
+        if i < grid - tail:
+            out.append((min(tile, w - x0) * min(tile, h - y0), False))
+            continue
+        for q in range(4):
+            qx, qy = x0 + (q & 1) * half, y0 + (q >> 1) * half
+            if qx < w and qy < h:
+                sw = tile - half if q & 1 else half
+                sh = tile - half if q >> 1 else half
+                out.append((min(sw, w - qx) * min(sh, h - qy), True))
+    return out
+
+
+def makespan(costs, slots):
+    """Tiles leased in queue order, each to the slot free first (a worker
+    thread asks for the next tile when it finishes one): the time the last
+    one ends."""
+    if slots >= len(costs):
+        return max(costs) if costs else 0.0
+    free = [0.0] * slots
+    heapq.heapify(free)
+    for c in costs:
+        heapq.heappush(free, heapq.heappop(free) + c)
+    return max(free)
 
 
 def predict(c, common, W, link_bps=10e9, coord_bps=None, rtt_s=1e-4, fanout=False, dtrace=False,
@@ -375,14 +424,16 @@ def predict(c, common, W, link_bps=10e9, coord_bps=None, rtt_s=1e-4, fanout=Fals
     t['distribute'] = spread(S, W)
     t['worker build'] = c['wbuild_s'] * slow(W * threads)
     w, h = size or c['size']
-    n = tiles_of(w, h, tile)
-    px_tile = w * h / n
-    t_tile = c['core_s_per_pixel'] * px_tile
+    layout = tile_layout(w, h, tile)
+    n = len(layout)
+    # a split tile's pixels cost more: its first-gather filter's border is a
+    # larger share of it (SPLIT_TILE_COST)
+    per_px = c['core_s_per_pixel']
     slots = W * threads
-    rounds = math.ceil(n / slots)
-    t_tiles = rounds * t_tile * slow(slots)
+    t_tiles = makespan([per_px * px * (SPLIT_TILE_COST if split else 1.0) for px, split in layout],
+                       slots) * slow(slots)
     t_msgs = n * common['message']['per_tile_s']
-    t_res = n * px_tile * RESULT_BYTES_PER_PIXEL / R
+    t_res = w * h * RESULT_BYTES_PER_PIXEL / R
     t['tiles'] = max(t_tiles, t_msgs, t_res) + rtt_s
     total = sum(t.values())
     return (total, t) if parts else total

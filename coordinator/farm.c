@@ -290,8 +290,9 @@ static int s_alloc_tables(pf_fm_t *f, const pf_settings_t *s, pf_error_t *err)
         return pf_error_set(err, PF_ENOMEM, NULL, 0, "out of memory");
     f->xfer = pf_xfer_new(maxw, o->blob_window);
     f->fan = pf_fanout_new(maxw, o->fanout);
+    f->fan_scene = pf_fanout_new(maxw, o->fanout);
     f->pix = malloc((size_t)f->ts * (size_t)f->ts * 3 * sizeof *f->pix);
-    if (!f->xfer || !f->fan || !f->pix || pf_fm_verify_init(f) != PF_OK)
+    if (!f->xfer || !f->fan || !f->fan_scene || !f->pix || pf_fm_verify_init(f) != PF_OK)
         return pf_error_set(err, PF_ENOMEM, NULL, 0, "out of memory");
     return PF_OK;
 }
@@ -543,6 +544,9 @@ static int s_on_photons_done(pf_fm_t *f, pf_error_t *err)
     pf_settings_t s = f->ph.settings; /* as a time limit planned them */
     f->jobmsg = (pf_msg_job_t){ f->ph.scene_hash, f->ph.scene_size, f->ph.maps_hash, f->ph.maps_size,
                                 s, f->ph.terms, (uint32_t)f->ts };
+    if (pf_fanout_set_blob(f->fan_scene, &f->ph.scene_fb) != PF_OK)
+        pf_warn("out of memory for the scene blob's chunk hashes: every worker fetches the scene from here");
+    f->fan_scene_on = 0; /* the early scene's tree is done: the JOB's plans carry the scene (pf_fm_fanout_job) */
     if (pf_fanout_set_blob(f->fan, &f->ph.maps_fb) != PF_OK)
         pf_warn("out of memory for the maps' chunk hashes: every worker fetches the maps from here");
     pf_xfer_set_blobs(f->xfer, &f->ph.scene_fb, &f->ph.maps_fb);
@@ -824,6 +828,7 @@ static void s_free(pf_fm_t *f)
     s_remove_ipc(f);
     pf_xfer_destroy(&f->xfer);
     pf_fanout_free(&f->fan);
+    pf_fanout_free(&f->fan_scene);
     pf_frame_close(&f->ph.frame);
     pf_photon_maps_free(&f->ph.next);
     pf_framed_blob_free(&f->ph.scene_fb);
@@ -907,13 +912,14 @@ void pf_farm_summary_log(const pf_farm_summary_t *s)
             (unsigned long long)s->takeovers, (unsigned long long)s->slots_reused);
     if (s->maps_blob_size)
         pf_info("summary: blobs from the coordinator: maps %llu bytes sent for %llu bytes of maps (%.2f x), scene "
-                "%llu for %llu (%.2f x); fan-out: %llu worker%s fetched the maps from a peer, %llu sent back here",
+                "%llu for %llu (%.2f x); fan-out: %llu worker%s fetched the maps from a peer, %llu sent back here, %llu "
+                "scene plans named a peer",
                 (unsigned long long)s->maps_blob_sent, (unsigned long long)s->maps_blob_size,
                 (double)s->maps_blob_sent / (double)s->maps_blob_size, (unsigned long long)s->scene_blob_sent,
                 (unsigned long long)s->scene_blob_size,
                 s->scene_blob_size ? (double)s->scene_blob_sent / (double)s->scene_blob_size : 0.0,
                 (unsigned long long)s->fanout_peer, s->fanout_peer == 1 ? "" : "s",
-                (unsigned long long)s->fanout_fallback);
+                (unsigned long long)s->fanout_fallback, (unsigned long long)s->fanout_scene_peer);
     if (s->verified || s->mismatches)
         pf_info("verify: %llu tile%s checked (%llu rendered here), %llu mismatch%s, %s%s%s, %llu tiles re-rendered",
                 (unsigned long long)s->verified, s->verified == 1 ? "" : "s", (unsigned long long)s->verify_local,

@@ -87,6 +87,7 @@ typedef struct pf_farm_summary {
      * source gone). */
     uint64_t scene_blob_size, scene_blob_sent, maps_blob_size, maps_blob_sent;
     uint64_t fanout_peer, fanout_fallback;
+    uint64_t fanout_scene_peer; /* scene plans (BLOB_PLAN) that named a peer as the source */
     uint64_t reissued, duplicates, malformed, refused;
     int workers_seen, workers_lost;
     /* Hostile peers: what was refused, dropped, evicted. */

@@ -84,6 +84,8 @@ typedef struct pf_fm {
     pf_leases_t L;
     pf_xfer_t *xfer;
     pf_fanout_t *fan;       /* the maps blob's fan-out tree (fanout.c) */
+    pf_fanout_t *fan_scene; /* the first photon pass's scene blob's (the early blob: workers trace over it) */
+    int fan_scene_on;       /* fan_scene holds that blob; its plans go out before a worker's first PHOTON_REQ */
     const char *frame_addr; /* the address libzmq gives the frame being handled (Peer-Address), or NULL */
     pf_fm_photons_t ph;
     pf_msg_job_t jobmsg;
@@ -224,6 +226,9 @@ int pf_fm_photons_release(pf_fm_t *f, int wi);
 void pf_fm_photons_end(pf_fm_t *f);
 
 /* farm_peers.c: fan-out (the tree: fanout.c) */
+/* The scene's BLOB_PLAN for worker wi before its first PHOTON_REQ of the
+ * first photon pass (fan_scene_on), when the early scene blob is fanned out. */
+void pf_fm_fanout_scene(pf_fm_t *f, int wi);
 
 /* Before worker wi's JOB: its BLOB_PLAN (where to fetch the maps, and their
  * chunk hashes); nothing when there is no plan. */

@@ -303,6 +303,7 @@ static void s_on_hello(pf_fm_t *f, const uint8_t *id, size_t idlen, const char *
     w->state = PF_W_HELLO;
     /* Peer sockets are plaintext: no fan-out where CURVE guards the farm. */
     pf_fanout_hello(f->fan, wi, w->uid, f->frame_addr, f->o->curve_secret ? 0 : h->peer_port);
+    pf_fanout_hello(f->fan_scene, wi, w->uid, f->frame_addr, f->o->curve_secret ? 0 : h->peer_port);
     if (strcmp(h->fp.git, self.git) != 0) {
         char git[128];
         pf_info("worker %s was built from %s (this coordinator: %s)", w->name,
@@ -489,6 +490,15 @@ void pf_fm_fanout_job(pf_fm_t *f, int wi)
         return;
     if (pf_fm_send(f, wi, &m) != 0)
         return;
+    /* The scene (fetched with the maps when the worker has not traced over
+     * it) from the same source: the worker's one peer socket serves both. */
+    pf_msg_t sm = { .type = PF_MSG_BLOB_PLAN };
+    if (pf_fanout_plan_coordinator(f->fan_scene, &sm.u.plan) != -1) {
+        snprintf(sm.u.plan.source, sizeof sm.u.plan.source, "%s", m.u.plan.source);
+        sm.u.plan.source_uid = m.u.plan.source_uid;
+        if (pf_fm_send(f, wi, &sm) == 0 && src >= 0)
+            f->sum->fanout_scene_peer++;
+    }
     if (src >= 0) {
         f->sum->fanout_peer++;
         pf_debug("worker %s fetches the maps from worker %s (%s)", f->reg.w[wi].name, f->reg.w[src].name,
@@ -496,17 +506,49 @@ void pf_fm_fanout_job(pf_fm_t *f, int wi)
     }
 }
 
+void pf_fm_fanout_scene(pf_fm_t *f, int wi)
+{
+    if (!f->fan_scene_on)
+        return;
+    pf_msg_t m = { .type = PF_MSG_BLOB_PLAN };
+    int src = pf_fanout_plan(f->fan_scene, wi, &m.u.plan);
+    if (src == -1 || pf_fm_send(f, wi, &m) != 0)
+        return;
+    if (src >= 0) {
+        f->sum->fanout_scene_peer++;
+        pf_debug("worker %s fetches the scene from worker %s (%s)", f->reg.w[wi].name, f->reg.w[src].name,
+                 m.u.plan.source);
+    }
+}
+
 void pf_fm_fanout_gone(pf_fm_t *f, int wi)
 {
     int kids[64];
+    /* The scene's tree while the first photon pass runs: a child still
+     * fetching takes the rest from the coordinator (one that holds the
+     * scene already ignores the plan). */
+    int ns = pf_fanout_gone(f->fan_scene, wi, kids, 64);
+    for (int k = 0; k < ns && f->fan_scene_on && !f->job_ready; k++) {
+        int ci = kids[k];
+        if (f->reg.w[ci].state != PF_W_HELLO)
+            continue;
+        pf_msg_t m = { .type = PF_MSG_BLOB_PLAN };
+        if (pf_fanout_plan_coordinator(f->fan_scene, &m.u.plan) == -1 || pf_fm_send(f, ci, &m) != 0)
+            continue;
+        f->sum->fanout_fallback++;
+        pf_info("worker %s fetches the scene from the coordinator now: its source, worker %s, is gone",
+                f->reg.w[ci].name, f->reg.w[wi].name);
+    }
     int n = pf_fanout_gone(f->fan, wi, kids, 64);
     for (int k = 0; k < n; k++) {
         int ci = kids[k];
         if (f->reg.w[ci].state != PF_W_JOB_SENT)
             continue; /* it has the maps already, or is gone itself */
-        pf_msg_t m = { .type = PF_MSG_BLOB_PLAN };
+        pf_msg_t m = { .type = PF_MSG_BLOB_PLAN }, sm = { .type = PF_MSG_BLOB_PLAN };
         if (pf_fanout_plan_coordinator(f->fan, &m.u.plan) == -1 || pf_fm_send(f, ci, &m) != 0)
             continue;
+        if (pf_fanout_plan_coordinator(f->fan_scene, &sm.u.plan) != -1) /* the scene came from there too */
+            pf_fm_send(f, ci, &sm);
         f->sum->fanout_fallback++;
         pf_info("worker %s fetches the maps from the coordinator now: its source, worker %s, is gone",
                 f->reg.w[ci].name, f->reg.w[wi].name);

@@ -99,6 +99,8 @@ static void s_lease(pf_fm_t *f, int wi, pf_phq_t *q)
     uint32_t n = pf_phq_lease(q, w->uid, want, pf_now(), &first);
     if (n == 0)
         return;
+    if (!w->ph_asked && !f->ph.early_from_job)
+        pf_fm_fanout_scene(f, wi);
     pf_msg_t m = { .type = PF_MSG_PHOTON_REQ };
     m.job = f->ph.job;
     m.u.photon_req = (pf_msg_photon_req_t){ f->ph.early_hash, f->ph.early_size, f->ph.settings, first, n };
@@ -155,6 +157,10 @@ void pf_fm_photons_tick(pf_fm_t *f)
         return;
     if (!f->ph_published) {
         if (!f->ph.early_from_job) {
+            /* the scene fans out as the maps do (fanout.h; before the blob
+             * server takes the blob); without its chunk hashes every
+             * worker fetches it from here */
+            f->fan_scene_on = pf_fanout_set_blob(f->fan_scene, &f->ph.early_fb) == PF_OK;
             pf_framed_blob_t none = { 0 };
             pf_xfer_set_blobs(f->xfer, &f->ph.early_fb, &none);
         }

@@ -11,25 +11,45 @@
 
 #include "base/status.h"
 
+/* Appends tile (x0, y0, w, h) clipped to the image, queued last. */
+static void s_add(pf_leases_t *L, int width, int height, int x0, int y0, int side_w, int side_h)
+{
+    pf_tile_t *t = &L->t[L->nt];
+    t->x0 = (uint32_t)x0;
+    t->y0 = (uint32_t)y0;
+    t->w = (uint32_t)(x0 + side_w <= width ? side_w : width - x0);
+    t->h = (uint32_t)(y0 + side_h <= height ? side_h : height - y0);
+    t->owner = -1;
+    L->queue[L->nt] = L->nt;
+    L->nt++;
+}
+
 int pf_leases_init(pf_leases_t *L, int width, int height, int ts)
 {
     memset(L, 0, sizeof *L);
-    int tx = (width + ts - 1) / ts, ty = (height + ts - 1) / ts;
-    L->nt = tx * ty;
-    L->t = calloc((size_t)L->nt, sizeof *L->t);
-    L->queue = calloc((size_t)L->nt, sizeof *L->queue);
+    int tx = (width + ts - 1) / ts, ty = (height + ts - 1) / ts, grid = tx * ty;
+    /* The tail: the last quarter of the grid (in queue order) in quarters,
+     * so the job's last round is of small tiles and no worker is left
+     * with a whole tile while the others idle (a tile's pixels come out the
+     * same bits whatever the tile). Not below 8 pixels a side. */
+    int tail = ts >= 16 ? grid / 4 : 0, half = (ts + 1) / 2;
+    L->t = calloc((size_t)(grid + 3 * tail), sizeof *L->t);
+    L->queue = calloc((size_t)(grid + 3 * tail), sizeof *L->queue);
     if (!L->t || !L->queue) {
         pf_leases_free(L);
         return PF_ENOMEM;
     }
-    for (int i = 0; i < L->nt; i++) {
-        pf_tile_t *t = &L->t[i];
-        t->x0 = (uint32_t)((i % tx) * ts);
-        t->y0 = (uint32_t)((i / tx) * ts);
-        t->w = (uint32_t)(t->x0 + (uint32_t)ts <= (uint32_t)width ? ts : width - (int)t->x0);
-        t->h = (uint32_t)(t->y0 + (uint32_t)ts <= (uint32_t)height ? ts : height - (int)t->y0);
-        t->owner = -1;
-        L->queue[i] = i;
+    for (int i = 0; i < grid; i++) {
+        int x0 = (i % tx) * ts, y0 = (i / tx) * ts;
+        if (i < grid - tail) {
+            s_add(L, width, height, x0, y0, ts, ts);
+            continue;
+        }
+        for (int q = 0; q < 4; q++) { /* the quadrants that exist: an edge tile may have fewer */
+            int qx = x0 + (q & 1) * half, qy = y0 + (q >> 1) * half;
+            if (qx < width && qy < height)
+                s_add(L, width, height, qx, qy, q & 1 ? ts - half : half, q >> 1 ? ts - half : half);
+        }
     }
     L->qlen = L->nt;
     return PF_OK;

@@ -54,8 +54,9 @@ typedef struct pf_leases {
     uint64_t reissued, duplicates;
 } pf_leases_t;
 
-/* Tiles of side ts over a width x height image, all queued in row order.
- * 0 or PF_ENOMEM. */
+/* Tiles of side ts over a width x height image, all queued in row order;
+ * the last quarter of them (ts >= 16) split in four, in row order within
+ * each, so the job ends on small tiles. 0 or PF_ENOMEM. */
 int pf_leases_init(pf_leases_t *L, int width, int height, int ts);
 void pf_leases_free(pf_leases_t *L);
 

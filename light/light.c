@@ -36,18 +36,29 @@
  * BVH over the area triangles, point and spot lights (lightbvh.c), by their
  * importance at the receiver, mixed with a quarter by power; the distant
  * lights and the sky entries are chosen apart with probability p_inf.
- * pf_lights_pdf_at and pf_lights_sky_pdf give the same probabilities. */
+ * pf_lights_pdf_at and pf_lights_sky_pdf give the same probabilities.
+ *
+ * An emissive analytic sphere is one entry (after the triangles), emitting
+ * outward, of power pi 4 pi r^2 lum(Le) like a triangle's; direct light
+ * draws it uniformly in the cone it subtends from the receiver (nothing from
+ * inside), pf_lights_pdf_at gives that pdf for a hit on it, photons start
+ * uniformly on it (spherelight.c); in the BVH it is bounded by its box and
+ * emits in every direction. */
 #include "light/light.h"
 
-#include <float.h>
 #include <stdlib.h>
 
 #include "base/sampling.h"
 #include "light/envlight.h"
 #include "light/lightbvh.h"
 #include "light/lighttab.h"
+#include "light/spherelight.h"
 
-typedef enum { S_AREA, S_POINT, S_DISTANT, S_INFINITE, S_ENVMAP } s_kind;
+typedef enum { S_AREA, S_POINT, S_DISTANT, S_INFINITE, S_ENVMAP, S_SPHERE } s_kind;
+
+/* The entries the light BVH holds (a position and bounds): triangles,
+ * spheres, point and spot lights. */
+static int s_bounded(s_kind k) { return k == S_AREA || k == S_SPHERE || k == S_POINT; }
 
 /* The share of direct light's samples drawn by power when the BVH is in use:
  * a defensive mixture. The BVH's importance is a bound and can be far off
@@ -65,14 +76,15 @@ typedef enum { S_AREA, S_POINT, S_DISTANT, S_INFINITE, S_ENVMAP } s_kind;
  * (3 tessellated spheres, 11904 triangles) at 320x180, 16 spp went from
  * relMSE 0.406 / 0.666 (seeds 1 / 2) to 0.463 / 0.697 with the BVH, though
  * its direct term alone improved (0.069 -> 0.048 at 160x90). This keeps the
- * Cornell boxes, furnaces and veach-mis as they were. */
+ * Cornell boxes, furnaces and veach-mis as they were (veach-mis's spheres,
+ * now three analytic sphere lights, are three groups: the power table). */
 #define S_MIN_GROUPS 8
 
 typedef struct s_entry {
     s_kind kind;
     uint32_t mesh, tri; /* area */
-    uint32_t light;     /* point, spot, distant or infinite; the index into env for S_ENVMAP */
-    float area;
+    uint32_t light;     /* point, spot, distant or infinite; the index into env for S_ENVMAP; the sphere's */
+    float area;         /* area and sphere */
     /* A point light outside the scene's bounding sphere emits photons only
      * into the cone that holds the sphere (cos_max > -1; axis towards the
      * centre): the others would leave the scene unseen. */
@@ -93,6 +105,7 @@ struct pf_lights {
     size_t ndistant;
     size_t n;
     size_t narea; /* entries [0, narea) are the area lights, sorted by (mesh, tri) */
+    uint32_t *sphere_entry; /* sphere index -> 1 + its entry, 0 none; NULL without spheres */
     double power;
     /* The scene's bounding sphere (radius 0 without geometry): distant
      * lights shine through the disc it casts. */
@@ -267,6 +280,8 @@ static pf_light_bounds_t s_entry_bounds(const pf_lights_t *self, const pf_scene_
         b.phi = (float)p;
         return b;
     }
+    if (e->kind == S_SPHERE)
+        return pf_sphere_light_bounds(&scene->spheres[e->light], (float)p);
     if (e->kind != S_POINT)
         return b;
     const pf_light_t *l = &scene->lights[e->light];
@@ -288,7 +303,7 @@ static size_t s_light_groups(const pf_lights_t *self, const pf_scene_t *scene)
     size_t groups = 0;
     for (size_t i = 0; i < self->n; i++) {
         const s_entry *e = &self->entries[i], *p = i ? &self->entries[i - 1] : NULL;
-        if (e->kind == S_POINT) {
+        if (e->kind == S_POINT || e->kind == S_SPHERE) {
             groups++;
             continue;
         }
@@ -314,8 +329,8 @@ static float s_mix_pmf(const pf_lights_t *self, size_t e, float p_bvh)
     float power = (float)(self->dcdf[e + 1] - self->dcdf[e]);
     if (k == S_DISTANT)
         return 0.0f; /* taken apart (pf_lights_distant) */
-    float own = k == S_AREA || k == S_POINT ? (1.0f - self->p_inf) * p_bvh
-                                            : self->p_inf * (float)((self->dcdf[e + 1] - self->dcdf[e]) / self->pu);
+    float own = s_bounded(k) ? (1.0f - self->p_inf) * p_bvh
+                             : self->p_inf * (float)((self->dcdf[e + 1] - self->dcdf[e]) / self->pu);
     return S_DEFENSIVE * power + (1.0f - S_DEFENSIVE) * own;
 }
 
@@ -333,7 +348,7 @@ static int s_build_pick(pf_lights_t *self, const pf_scene_t *scene)
     double pu = 0.0;
     for (size_t i = 0; i < self->n; i++) {
         s_kind k = self->entries[i].kind;
-        nb += k == S_AREA || k == S_POINT;
+        nb += s_bounded(k);
         if (k == S_INFINITE || k == S_ENVMAP) {
             nunb++;
             ninf = 1;
@@ -356,7 +371,7 @@ static int s_build_pick(pf_lights_t *self, const pf_scene_t *scene)
     double acc = 0.0;
     for (size_t i = 0; i < self->n; i++) {
         s_kind kind = self->entries[i].kind;
-        if (kind == S_AREA || kind == S_POINT) {
+        if (s_bounded(kind)) {
             b[k] = s_entry_bounds(self, scene, i);
             id[k++] = (uint32_t)i;
         } else if (kind != S_DISTANT) {
@@ -403,13 +418,14 @@ pf_lights_t *pf_lights_build(const pf_scene_t *scene)
     pf_lights_t *self = calloc(1, sizeof *self);
     if (!self)
         return NULL;
-    size_t cap = scene->nlights;
+    size_t cap = scene->nlights + scene->nspheres;
     for (size_t m = 0; m < scene->nmeshes; m++)
         for (size_t t = 0; t < scene->meshes[m].ntris; t++)
             cap += !pf_is_black(scene->mats[scene->meshes[m].mat[t]].le);
     self->entries = calloc(cap ? cap : 1, sizeof *self->entries);
     self->cdf = calloc(cap + 1, sizeof *self->cdf);
-    if (!self->entries || !self->cdf) {
+    self->sphere_entry = scene->nspheres ? calloc(scene->nspheres, sizeof *self->sphere_entry) : NULL;
+    if (!self->entries || !self->cdf || (scene->nspheres && !self->sphere_entry)) {
         pf_lights_destroy(&self);
         return NULL;
     }
@@ -433,6 +449,17 @@ pf_lights_t *pf_lights_build(const pf_scene_t *scene)
         }
     }
     self->narea = self->n;
+    for (size_t i = 0; i < scene->nspheres; i++) { /* after the triangles: pf_lights_pdf_at's search */
+        const pf_sphere_t *sp = &scene->spheres[i];
+        float area = pf_sphere_light_area(sp);
+        double p = PF_PI * (double)area * pf_luminance(scene->mats[sp->mat].le);
+        if (!(p > 0.0))
+            continue;
+        self->sphere_entry[i] = (uint32_t)self->n + 1;
+        self->entries[self->n] = (s_entry){ .kind = S_SPHERE, .light = (uint32_t)i, .area = area };
+        self->cdf[self->n++] = acc;
+        acc += p;
+    }
     for (size_t l = 0; l < scene->nlights; l++) {
         const pf_light_t *li = &scene->lights[l];
         double p = s_light_power(li, self->radius);
@@ -491,6 +518,7 @@ void pf_lights_destroy(pf_lights_t **self_p)
     if (!self_p || !*self_p)
         return;
     free((*self_p)->entries);
+    free((*self_p)->sphere_entry);
     if ((*self_p)->dcdf != (*self_p)->cdf)
         free((*self_p)->dcdf);
     free((*self_p)->cdf);
@@ -584,7 +612,7 @@ static size_t s_pick_direct(const pf_lights_t *self, pf_vec3 x, pf_vec3 n, float
     if (u < S_DEFENSIVE) { /* by power */
         e = s_pick(self, self->dcdf, fminf(u / S_DEFENSIVE, 0x1.fffffep-1f), &pp);
         s_kind k = self->entries[e].kind;
-        float pb = k == S_AREA || k == S_POINT ? pf_lightbvh_pmf(self->bvh, x, n, (uint32_t)e) : 0.0f;
+        float pb = s_bounded(k) ? pf_lightbvh_pmf(self->bvh, x, n, (uint32_t)e) : 0.0f;
         *pmf = (double)s_mix_pmf(self, e, pb);
         return e;
     }
@@ -611,13 +639,19 @@ static size_t s_pick_direct(const pf_lights_t *self, pf_vec3 x, pf_vec3 n, float
     return id;
 }
 
-/* A uniform point on an emissive triangle, its unit face normal and error bound. */
-static void s_tri_point(const pf_lights_t *self, const s_entry *e, float u1, float u2, pf_vec3 *p, pf_vec3 *n,
-                        pf_vec3 *perr)
+/* A uniform point on a triangle (its record) or sphere entry, its unit
+ * face normal and error bound; returns its Le. */
+static pf_vec3 s_surface_point(const pf_lights_t *self, const pf_scene_t *scene, const s_entry *e, const float *u,
+                               pf_vec3 *p, pf_vec3 *n, pf_vec3 *perr)
 {
-    const pf_emit_tri_t *t = &self->tris[e - self->entries];
-    *p = pf_emit_tri_point(t, u1, u2, perr);
-    *n = t->n;
+    if (e->kind == S_AREA) {
+        const pf_emit_tri_t *t = &self->tris[e - self->entries];
+        *p = pf_emit_tri_point(t, u[0], u[1], perr);
+        *n = t->n;
+        return t->le;
+    }
+    pf_sphere_light_point(&scene->spheres[e->light], u[0], u[1], p, n, perr);
+    return scene->mats[scene->spheres[e->light].mat].le;
 }
 
 int pf_lights_sample_direct(const pf_lights_t *self, const pf_scene_t *scene, pf_vec3 x, const float u[3],
@@ -656,6 +690,14 @@ int pf_lights_sample_direct_at(const pf_lights_t *self, const pf_scene_t *scene,
         return 1;
     }
     const s_entry *e = &self->entries[pick];
+    if (e->kind == S_SPHERE) { /* uniform in its cone: Le / (pmf pdf) */
+        const pf_sphere_t *sp = &scene->spheres[e->light];
+        if (!pf_sphere_light_sample(sp, x, u[1], u[2], &out->wi, &out->dist, &out->pdf))
+            return 0; /* x inside: it sees the back */
+        out->pdf *= (float)pmf;
+        out->weight = pf_scale(scene->mats[sp->mat].le, 1.0f / out->pdf);
+        return 1;
+    }
     if (e->kind == S_ENVMAP || (e->kind == S_INFINITE && self->nenv))
         return s_sky_mixture(self, e, n, u, out);
     if (e->kind == S_INFINITE) {
@@ -709,9 +751,20 @@ float pf_lights_pdf(const pf_lights_t *self, const pf_scene_t *scene, pf_vec3 x,
     return pf_lights_pdf_at(self, scene, x, pf_v3s(0.0f), geom, prim, p);
 }
 
+/* Direct light's probability of choosing entry i at (x, nx). */
+static float s_direct_pmf(const pf_lights_t *self, pf_vec3 x, pf_vec3 nx, size_t i)
+{
+    return self->bvh ? s_mix_pmf(self, i, pf_lightbvh_pmf(self->bvh, x, nx, (uint32_t)i))
+                     : (float)(self->dcdf[i + 1] - self->dcdf[i]);
+}
+
 float pf_lights_pdf_at(const pf_lights_t *self, const pf_scene_t *scene, pf_vec3 x, pf_vec3 nx, uint32_t geom,
                        uint32_t prim, pf_vec3 p)
 {
+    if (geom == scene->nmeshes) { /* a sphere: accel.c's sphere_geom, prim its index */
+        uint32_t i = self->sphere_entry && prim < scene->nspheres ? self->sphere_entry[prim] : 0;
+        return i ? s_direct_pmf(self, x, nx, i - 1) * pf_sphere_light_pdf(&scene->spheres[prim], x) : 0.0f;
+    }
     size_t lo = 0, hi = self->narea;
     while (lo < hi) { /* the first area entry >= (geom, prim) */
         size_t mid = (lo + hi) / 2;
@@ -724,7 +777,7 @@ float pf_lights_pdf_at(const pf_lights_t *self, const pf_scene_t *scene, pf_vec3
     if (lo == self->narea || self->entries[lo].mesh != geom || self->entries[lo].tri != prim)
         return 0.0f;
     const s_entry *e = &self->entries[lo];
-    pf_vec3 n = self->tris[lo].n; /* the normal exactly as s_tri_point gives it */
+    pf_vec3 n = self->tris[lo].n; /* the normal exactly as s_surface_point gives it */
     pf_vec3 d = pf_sub(p, x);
     float d2 = pf_len2(d);
     if (!(d2 > 0.0f))
@@ -732,9 +785,7 @@ float pf_lights_pdf_at(const pf_lights_t *self, const pf_scene_t *scene, pf_vec3
     float cos_l = -pf_dot(d, n) / sqrtf(d2);
     if (cos_l <= 0.0f)
         return 0.0f;
-    float pmf = self->bvh ? s_mix_pmf(self, lo, pf_lightbvh_pmf(self->bvh, x, nx, (uint32_t)lo))
-                          : (float)(self->dcdf[lo + 1] - self->dcdf[lo]);
-    return pmf / e->area * d2 / cos_l;
+    return s_direct_pmf(self, x, nx, lo) / e->area * d2 / cos_l;
 }
 
 /* The plane a distant light's photons start on: perpendicular to its
@@ -761,11 +812,9 @@ int pf_lights_emit(const pf_lights_t *self, const pf_scene_t *scene, const float
         return 0;
     double pmf;
     const s_entry *e = &self->entries[s_pick(self, self->cdf, u[0], &pmf)];
-    if (e->kind == S_AREA) {
-        pf_vec3 p, n, perr;
-        s_tri_point(self, e, u[1], u[2], &p, &n, &perr);
+    if (e->kind == S_AREA || e->kind == S_SPHERE) {
+        pf_vec3 p, n, perr, le = s_surface_point(self, scene, e, &u[1], &p, &n, &perr);
         pf_vec3 local = pf_sample_cosine(u[3], u[4]);
-        pf_vec3 le = scene->mats[scene->meshes[e->mesh].mat[e->tri]].le;
         /* Le cos / (pdf_area pdf_dir) = Le cos / ((pmf / A) (cos / pi)) = Le A pi / pmf. */
         out->ray = (pf_ray_t){ p, pf_to_world(local, n) };
         out->flux = pf_scale(le, PF_PI * e->area / (float)pmf);
@@ -822,69 +871,6 @@ int pf_lights_emit(const pf_lights_t *self, const pf_scene_t *scene, const float
     return 1;
 }
 
-int pf_specular_targets(const pf_scene_t *scene, pf_target_t **out)
-{
-    *out = NULL;
-    size_t cap = scene->nmeshes + scene->nspheres, n = 0;
-    if (cap == 0)
-        return 0;
-    pf_target_t *t = malloc(cap * sizeof *t);
-    if (!t)
-        return PF_ENOMEM;
-    for (size_t m = 0; m < scene->nmeshes; m++) {
-        const pf_mesh_t *mesh = &scene->meshes[m];
-        pf_vec3 lo = pf_v3s(FLT_MAX), hi = pf_v3s(-FLT_MAX);
-        for (size_t i = 0; i < mesh->ntris; i++) {
-            pf_mat_type ty = scene->mats[mesh->mat[i]].type;
-            if (ty == PF_MAT_DIFFUSE || ty == PF_MAT_COATED || ty == PF_MAT_DIFFUSE_TRANSMISSION)
-                continue; /* coated and diffuse transmission are diffuse for the caustic map (photon/trace.c) */
-            for (int k = 0; k < 3; k++) {
-                lo = pf_vmin(lo, mesh->pos[mesh->idx[3 * i + k]]);
-                hi = pf_vmax(hi, mesh->pos[mesh->idx[3 * i + k]]);
-            }
-        }
-        if (lo.x > hi.x)
-            continue;
-        pf_vec3 c = pf_scale(pf_add(lo, hi), 0.5f);
-        /* Half the box diagonal, widened a little for the rounding above. */
-        t[n++] = (pf_target_t){ c, 0.5f * pf_len(pf_sub(hi, lo)) * 1.001f + 1e-6f };
-    }
-    for (size_t i = 0; i < scene->nspheres; i++) {
-        const pf_sphere_t *sp = &scene->spheres[i];
-        pf_mat_type ty = scene->mats[sp->mat].type;
-        if (ty != PF_MAT_DIFFUSE && ty != PF_MAT_COATED && ty != PF_MAT_DIFFUSE_TRANSMISSION)
-            t[n++] = (pf_target_t){ sp->center, sp->radius * 1.001f };
-    }
-    if (n == 0) {
-        free(t);
-        return 0;
-    }
-    *out = t;
-    return (int)n;
-}
-
-/* The cone from p that holds target t: axis and cos of the half-angle; a
- * point inside the sphere sees the whole sphere of directions (cos = -1). */
-static void s_cone(pf_vec3 p, const pf_target_t *t, pf_vec3 *axis, float *cos_max, float *solid)
-{
-    pf_vec3 d = pf_sub(t->center, p);
-    float dist2 = pf_len2(d);
-    float r2 = t->radius * t->radius;
-    if (dist2 <= r2) {
-        *axis = pf_v3(0, 0, 1);
-        *cos_max = -1.0f;
-        *solid = 4.0f * PF_PI;
-        return;
-    }
-    float dist = sqrtf(dist2);
-    *axis = pf_scale(d, 1.0f / dist);
-    float sin2 = r2 / dist2;
-    float c = sqrtf(fmaxf(0.0f, 1.0f - sin2));
-    *cos_max = c;
-    /* 1 - cos without cancellation for small cones. */
-    *solid = 2.0f * PF_PI * (sin2 / (1.0f + c));
-}
-
 /* A caustic photon of a distant light: a point uniform in the disc that a
  * target chosen uniformly casts on the emission plane (every ray along dir
  * that meets a target crosses its disc), the flux divided by the mixture pdf
@@ -938,10 +924,11 @@ int pf_lights_emit_targeted(const pf_lights_t *self, const pf_scene_t *scene, co
     if (e->kind == S_INFINITE) /* a direction uniform over the sphere, pdf 1 / (4 pi) */
         return s_distant_targeted(self, pf_sample_sphere(u[1], u[2]), pf_scale(self->sky, 4.0f * PF_PI), pmf,
                                   targets, ntargets, u, out);
-    pf_vec3 p, n = pf_v3s(0.0f), perr = pf_v3s(0.0f);
+    pf_vec3 p, n = pf_v3s(0.0f), perr = pf_v3s(0.0f), le = pf_v3s(0.0f);
     const pf_light_t *l = NULL;
-    if (e->kind == S_AREA) {
-        s_tri_point(self, e, u[1], u[2], &p, &n, &perr);
+    int surface = e->kind == S_AREA || e->kind == S_SPHERE;
+    if (surface) {
+        le = s_surface_point(self, scene, e, &u[1], &p, &n, &perr);
     } else {
         l = &scene->lights[e->light];
         p = l->pos;
@@ -951,14 +938,15 @@ int pf_lights_emit_targeted(const pf_lights_t *self, const pf_scene_t *scene, co
         ti = ntargets - 1;
     pf_vec3 axis;
     float cos_max, solid;
-    s_cone(p, &targets[ti], &axis, &cos_max, &solid);
-    pf_vec3 w = cos_max <= -1.0f ? pf_sample_sphere(u[4], u[5]) : pf_to_world(pf_sample_cone(u[4], u[5], cos_max), axis);
+    pf_target_cone(p, &targets[ti], &axis, &cos_max, &solid);
+    pf_vec3 w = cos_max <= -1.0f ? pf_sample_sphere(u[4], u[5])
+                                 : pf_to_world(pf_sample_cone(u[4], u[5], cos_max), axis);
     /* Mixture pdf over every target whose cone holds w. */
     double pdf = 0.0;
     for (size_t k = 0; k < ntargets; k++) {
         pf_vec3 ak;
         float ck, sk;
-        s_cone(p, &targets[k], &ak, &ck, &sk);
+        pf_target_cone(p, &targets[k], &ak, &ck, &sk);
         if (ck <= -1.0f || pf_dot(w, ak) >= ck)
             pdf += 1.0 / (double)sk;
     }
@@ -966,11 +954,10 @@ int pf_lights_emit_targeted(const pf_lights_t *self, const pf_scene_t *scene, co
     if (!(pdf > 0.0))
         return 0;
     pf_vec3 radiant; /* emitted radiance x cos (area) or intensity (point, spot) towards w */
-    if (e->kind == S_AREA) {
+    if (surface) {
         float cos_l = pf_dot(w, n);
         if (cos_l <= 0.0f)
             return 0;
-        pf_vec3 le = scene->mats[scene->meshes[e->mesh].mat[e->tri]].le;
         radiant = pf_scale(le, cos_l * e->area); /* divided by pdf_area = 1 / area */
     } else {
         float f = l->type == PF_LIGHT_SPOT ? pf_spot_falloff(l, pf_dot(w, l->dir)) : 1.0f;

@@ -1,5 +1,6 @@
 /* light.h: the scene's emitters in one power-weighted table: every emissive
- * triangle (one-sided area light along its face normal), point, spot,
+ * triangle (one-sided area light along its face normal), every emissive
+ * analytic sphere (emitting outward, sampled by its cone: spherelight.h), point, spot,
  * distant and infinite lights (a constant sky, or an image-based one:
  * envlight.h). Used for direct-light sampling (worker) and photon emission
  * (coordinator); with many emitters direct light chooses through a light
@@ -79,8 +80,9 @@ void pf_lights_distant(const pf_lights_t *self, const pf_scene_t *scene, size_t 
 /* The solid-angle pdf with which pf_lights_sample_direct, called at x,
  * returns the point p on triangle prim of mesh geom (a hit's geom and
  * prim): the emitter's probability times its area pdf, converted to solid
- * angle. 0 when that triangle is no light in the table (or a sphere), or x
- * sees its back. */
+ * angle; for geom == scene->nmeshes (the accelerator's sphere geometry),
+ * sphere prim's probability times its cone's pdf. 0 when that triangle or
+ * sphere is no light in the table, or x sees its back (inside a sphere). */
 float pf_lights_pdf(const pf_lights_t *self, const pf_scene_t *scene, pf_vec3 x, uint32_t geom, uint32_t prim,
                     pf_vec3 p);
 
@@ -113,6 +115,11 @@ typedef struct pf_target {
     pf_vec3 center;
     float radius;
 } pf_target_t;
+
+/* The cone from p that holds target t: unit axis, cos of the half-angle and
+ * solid angle; a point inside the sphere sees the whole sphere of directions
+ * (cos -1, solid 4 pi). For pf_lights_emit_targeted (targets.c). */
+void pf_target_cone(pf_vec3 p, const pf_target_t *t, pf_vec3 *axis, float *cos_max, float *solid);
 
 /* Bounding spheres of the scene's mirror, glass and conductor geometry: one
  * per mesh (over its specular triangles) and one per specular sphere. *out is

@@ -663,9 +663,6 @@ static int s_sphere(s_ctx_t *c, const cJSON *o)
         rc = pf_json_require(c, o, "material", what, &vmat);
     if (!rc)
         rc = s_material_ref(c, vmat, "material", what, &mat);
-    if (!rc && !pf_is_black(c->scene->mats[mat].le))
-        rc = pf_json_fail_line(c, PF_EUNSUPPORTED, pf_json_line_of(c, vmat),
-                         "emissive spheres are not supported; use an emissive quad or mesh");
     if (!rc)
         rc = s_object_transform(c, o, &xf, &has_xf, &lin);
     if (rc)

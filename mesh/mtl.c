@@ -27,6 +27,7 @@
  *   Pr / Pm (the PBR extension: roughness and metallic, each in [0, 1],
  *   clamped with a warning) on illum absent or 0-2, when either is given:
  *     Pm > 0.5       CONDUCTOR, reflectance Kd (pbrt's form: eta 1, k of Kd),
+ *                    or map_Kd's texture per hit (refl_tex),
  *                    alpha = Pr^2 (Pr absent: 0, a smooth metal)
  *     Pm <= 0.5      COATED kd = Kd under a lossless coat of index Ni (1.5
  *                    when absent or below 1), alpha = Pr^2 (Pr absent: 1)
@@ -255,6 +256,8 @@ static int s_finish(s_ctx_t *c, const s_mtl_t *s)
     }
     if (s->kd_tex && (m.type == PF_MAT_DIFFUSE || m.type == PF_MAT_COATED))
         m.kd_tex = s->kd_tex;
+    else if (s->kd_tex && m.type == PF_MAT_CONDUCTOR)
+        m.refl_tex = s->kd_tex; /* the base colour textured: the reflectance form per hit */
     m.alpha_tex = s->d_tex;
     m.bump_tex = s->bump_tex; /* any kind: they bend the shading normal */
     m.normal_tex = s->norm_tex;

@@ -27,9 +27,15 @@
 #include "proto/messages.h"
 #include "scene/scene.h"
 
+/* A scene built once (the scene, its accel, its lights) that several frames
+ * share (pf_frame_share): counted, freed by the last frame closed, from any
+ * thread. */
+typedef struct pf_frame_base pf_frame_base_t;
+
 typedef struct pf_frame {
     const pf_scene_t *scene; /* the scene rendered (borrowed, or owned_scene) */
     pf_scene_t *owned_scene; /* set when the frame owns its scene (built from a blob) */
+    pf_frame_base_t *base;   /* set when the scene, accel and lights are shared: base owns them */
     pf_accel_t *accel;
     pf_lights_t *lights;
     pf_photon_maps_t maps;   /* empty until filled by the photon pass or a blob */
@@ -52,6 +58,20 @@ int pf_frame_open_owned(pf_frame_t *f, pf_scene_t **scene_p, pf_error_t *err);
 int pf_frame_from_blobs(pf_frame_t *f, const uint8_t *scene_blob, size_t scene_len, uint64_t scene_hash,
                         const uint8_t *maps_blob, size_t maps_len, uint64_t maps_hash, const pf_settings_t *settings,
                         pf_error_t *err);
+
+/* Opens frame f on the scene, accel and lights of the open frame src
+ * (one built from a blob, or opened owned), without building them again:
+ * both frames share them from now on, and whichever closes last frees
+ * them; f's maps start empty. 0, or PF_ENOMEM (f is then closed, src
+ * unchanged). A borrowed scene (pf_frame_open) cannot be shared: PF_EINVAL. */
+int pf_frame_share(pf_frame_t *f, pf_frame_t *src);
+
+/* Reads the photon-map blob into an open frame without maps (checked
+ * against scene_hash and the hash of settings), derives the deep gathers'
+ * points and readies it (pf_frame_ready). 0, or a status with err naming
+ * the blob; the frame keeps its scene either way. */
+int pf_frame_read_maps(pf_frame_t *f, const uint8_t *maps_blob, size_t maps_len, uint64_t scene_hash,
+                       uint64_t maps_hash, const pf_settings_t *settings, pf_error_t *err);
 
 /* Readies the maps for rendering: the irradiance points' nearest-point grid
  * (pf_photon_maps_index) and the irradiance texels (pf_irrtex_create). Out

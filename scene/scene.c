@@ -543,9 +543,6 @@ int pf_scene_finalize(pf_scene_t *self, pf_error_t *err)
                                 s);
         if (sp->mat >= self->nmats)
             return pf_error_set(err, PF_EPARSE, file, 0, "sphere %zu: material index out of range", s);
-        if (!pf_is_black(self->mats[sp->mat].le))
-            return pf_error_set(err, PF_EUNSUPPORTED, file, 0,
-                                "sphere %zu: emissive spheres are not supported; use an emissive mesh", s);
     }
     for (size_t l = 0; l < self->nlights; l++) {
         const pf_light_t *li = &self->lights[l];
@@ -567,6 +564,8 @@ int pf_scene_finalize(pf_scene_t *self, pf_error_t *err)
             return rc;
     }
     int emitters = (int)self->nlights;
+    for (size_t s = 0; s < self->nspheres && !emitters; s++) /* a sphere emits outward (light/spherelight.h) */
+        emitters = !pf_is_black(self->mats[self->spheres[s].mat].le);
     for (size_t mi = 0; mi < self->nmeshes && !emitters; mi++)
         for (size_t t = 0; t < self->meshes[mi].ntris && !emitters; t++)
             emitters = !pf_is_black(self->mats[self->meshes[mi].mat[t]].le);

@@ -69,8 +69,11 @@ void pf_w_work_free(s_work *it)
 
 /* ---- the compute thread ---- */
 
-/* Rebuilds the frame (scene, accel, lights, maps, texels) from the job's blobs. */
-static void s_compute_build(s_work *it)
+/* Builds the job's frame: the scene, accel and lights shared with the
+ * compute thread's frame of that scene (built from the scene blob only when
+ * it is a new scene: pf_w_scene_frame), the maps, texels and deep points
+ * from the maps blob. */
+static void s_compute_build(s_worker *w, s_work *it)
 {
     const pf_msg_job_t *d = &it->job->desc;
     pf_error_t err = { { 0 } };
@@ -83,8 +86,14 @@ static void s_compute_build(s_work *it)
     b->maps_hash = d->maps_hash;
     b->settings_hash = pf_settings_hash(&d->settings);
     b->refs = 1;
-    if (pf_frame_from_blobs(&b->frame, it->scene_blob->data, it->scene_blob->size, d->scene_hash, it->maps_blob->data,
-                            it->maps_blob->size, d->maps_hash, &d->settings, &err) != PF_OK) {
+    if (pf_w_scene_frame(w, it) != 0)
+        goto fail;
+    if (pf_frame_share(&b->frame, &w->ph_frame) != PF_OK) {
+        snprintf(it->error, sizeof it->error, "out of memory");
+        goto fail;
+    }
+    if (pf_frame_read_maps(&b->frame, it->maps_blob->data, it->maps_blob->size, d->scene_hash, d->maps_hash,
+                           &d->settings, &err) != PF_OK) {
         snprintf(it->error, sizeof it->error, "%s", err.msg);
         goto fail;
     }
@@ -149,7 +158,7 @@ static void *s_compute_main(void *arg)
 
         if (!atomic_load(&it->job->cancelled)) {
             if (it->kind == S_WORK_BUILD)
-                s_compute_build(it);
+                s_compute_build(w, it);
             else if (it->kind == S_WORK_PHOTONS)
                 pf_w_compute_photons(w, it);
             else

@@ -6,7 +6,7 @@
  * every interface otherwise; the port announced in HELLO; none with CURVE,
  * --no-peers, or an ipc:// coordinator unless --peer-port is given). A child sends
  * BLOB_REQ(hash, offset, credit) exactly as it would to the coordinator;
- * the range is kept per child and its chunks go out as this worker holds
+ * the range is kept per child and blob and its chunks go out as this worker holds
  * them (a chunk is relayed as soon as it has arrived and passed its chunk
  * hash, so a tree streams). Bounded: at most S_MAX_CHILDREN children, a
  * few chunks queued per child (SNDHWM), requests of at most 64 chunks
@@ -106,8 +106,9 @@ void pf_w_peers_close(s_worker *w)
     if (w->psrv)
         zmq_close(w->psrv);
     w->psrv = NULL;
-    free(w->plan.leaves);
-    memset(&w->plan, 0, sizeof w->plan);
+    for (int i = 0; i < 2; i++)
+        free(w->plans[i].leaves);
+    memset(w->plans, 0, sizeof w->plans);
     pf_buf_free(&w->penc);
 }
 
@@ -131,12 +132,19 @@ void pf_w_on_plan(s_worker *w, const pf_msg_t *m)
     }
     for (uint32_t k = 0; k < p->n; k++)
         leaves[k] = pf_msg_plan_leaf(p, k);
-    free(w->plan.leaves);
-    w->plan.hash = p->hash;
-    w->plan.size = p->size;
-    w->plan.n = p->n;
-    w->plan.leaves = leaves;
-    snprintf(w->plan.source, sizeof w->plan.source, "%s", p->source);
+    /* The blob's own slot when it has one, else the older of the two. */
+    int i = w->plans[0].leaves && w->plans[0].hash == p->hash ? 0
+            : w->plans[1].leaves && w->plans[1].hash == p->hash ? 1
+                                                                 : w->plan_next;
+    if (i == w->plan_next)
+        w->plan_next ^= 1;
+    s_plan *pl = &w->plans[i];
+    free(pl->leaves);
+    pl->hash = p->hash;
+    pl->size = p->size;
+    pl->n = p->n;
+    pl->leaves = leaves;
+    snprintf(pl->source, sizeof pl->source, "%s", p->source);
     /* A blob already under way (the plan changed: its source is gone). */
     for (size_t i = 0; i < w->nblobs; i++) {
         s_blob *b = w->blobs[i];
@@ -172,19 +180,23 @@ static int s_fetch_open(s_worker *w, const char *src)
 
 void pf_w_peers_attach(s_worker *w, s_blob *b)
 {
-    if (!w->plan.leaves || w->plan.hash != b->hash || w->plan.size != b->size)
+    const s_plan *pl = NULL;
+    for (int i = 0; i < 2; i++)
+        if (w->plans[i].leaves && w->plans[i].hash == b->hash && w->plans[i].size == b->size)
+            pl = &w->plans[i];
+    if (!pl)
         return;
     if (!b->leaves) {
-        b->leaves = malloc((size_t)w->plan.n * sizeof *b->leaves);
+        b->leaves = malloc((size_t)pl->n * sizeof *b->leaves);
         if (b->leaves) {
-            memcpy(b->leaves, w->plan.leaves, (size_t)w->plan.n * sizeof *b->leaves);
-            b->nleaves = w->plan.n;
+            memcpy(b->leaves, pl->leaves, (size_t)pl->n * sizeof *b->leaves);
+            b->nleaves = pl->n;
         }
     }
-    if (!b->leaves || !w->plan.source[0] || s_source_bad(w, w->plan.source) || s_fetch_open(w, w->plan.source) != 0)
+    if (!b->leaves || !pl->source[0] || s_source_bad(w, pl->source) || s_fetch_open(w, pl->source) != 0)
         return;
     b->from_peer = 1;
-    pf_w_log(w, PF_LOG_INFO, "fetching blob %016" PRIx64 " from peer %s", b->hash, w->plan.source);
+    pf_w_log(w, PF_LOG_INFO, "fetching blob %016" PRIx64 " from peer %s", b->hash, pl->source);
 }
 
 void pf_w_peers_strike_source(s_worker *w, const char *why)
@@ -263,12 +275,14 @@ static void s_child_strike(s_worker *w, const uint8_t *id, size_t idlen, const c
     }
 }
 
-static s_child *s_child_get(s_worker *w, const uint8_t *id, size_t idlen)
+/* The entry of a child's transfer of one blob (a child may fetch the scene
+ * and the maps at once: an entry each). */
+static s_child *s_child_get(s_worker *w, const uint8_t *id, size_t idlen, uint64_t hash)
 {
     s_child *free_slot = NULL;
     for (int i = 0; i < S_MAX_CHILDREN; i++) {
         s_child *c = &w->children[i];
-        if (c->used && c->idlen == idlen && memcmp(c->id, id, idlen) == 0)
+        if (c->used && c->hash == hash && c->idlen == idlen && memcmp(c->id, id, idlen) == 0)
             return c;
         if (!c->used && !free_slot)
             free_slot = c;
@@ -278,6 +292,7 @@ static s_child *s_child_get(s_worker *w, const uint8_t *id, size_t idlen)
         free_slot->used = 1;
         memcpy(free_slot->id, id, idlen);
         free_slot->idlen = idlen;
+        free_slot->hash = hash;
     }
     return free_slot;
 }
@@ -302,12 +317,13 @@ static void s_on_child_req(s_worker *w, const uint8_t *id, size_t idlen, uint64_
         s_child_strike(w, id, idlen, "BLOB_REQ past the blob's end");
         return;
     }
-    s_child *c = s_child_get(w, id, idlen);
+    s_child *c = s_child_get(w, id, idlen, r->hash);
     if (!c) {
-        pf_w_log(w, PF_LOG_DEBUG, "a peer's BLOB_REQ ignored: %d children served already", S_MAX_CHILDREN);
+        pf_w_log(w, PF_LOG_DEBUG, "a peer's BLOB_REQ ignored: %d transfers to children under way already",
+                 S_MAX_CHILDREN);
         return;
     }
-    if (c->hash != r->hash || k0 != c->hi) /* a new blob or a restart: from k0 */
+    if (k0 != c->hi) /* a restart: from k0 */
         c->next = (uint32_t)k0;
     c->hash = r->hash;
     c->size = b->size;

@@ -15,7 +15,10 @@
  * render job's JOB arrives (the photon pass is over then), with JOB_END, BYE
  * or a lost coordinator (pf_w_job_drop calls pf_w_photons_drop). Handlers
  * run in the main thread; pf_w_compute_photons in the compute thread, which
- * alone touches w->ph_frame. */
+ * alone touches w->ph_frame (pf_w_scene_frame): the same scene, accel and
+ * lights serve the photon batches and, shared (pf_frame_share), every
+ * render frame of that scene (compute.c), so a worker builds a scene once
+ * however many passes and maps come. */
 #include <inttypes.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -118,9 +121,7 @@ void pf_w_on_photon_req(s_worker *w, const pf_msg_t *m)
                  q->count, w->nph_wait);
 }
 
-/* Compute thread: the scene's frame (accel, lights; no maps), built when the
- * scene differs from the last one traced. 0, or -1 with it->error set. */
-static int s_photon_frame(s_worker *w, s_work *it)
+int pf_w_scene_frame(s_worker *w, s_work *it)
 {
     const pf_msg_job_t *d = &it->job->desc;
     if (w->ph_frame_ok && w->ph_frame_hash == d->scene_hash)
@@ -134,7 +135,7 @@ static int s_photon_frame(s_worker *w, s_work *it)
         return -1;
     }
     if (pf_frame_open_owned(&w->ph_frame, &scene, &err) != PF_OK) {
-        snprintf(it->error, sizeof it->error, "cannot build the scene for photons: %s", err.msg);
+        snprintf(it->error, sizeof it->error, "cannot build the ray-tracing structure: %s", err.msg);
         return -1;
     }
     w->ph_frame_ok = 1;
@@ -145,7 +146,7 @@ static int s_photon_frame(s_worker *w, s_work *it)
 void pf_w_compute_photons(s_worker *w, s_work *it)
 {
     double t0 = pf_now();
-    if (s_photon_frame(w, it) != 0)
+    if (pf_w_scene_frame(w, it) != 0)
         return;
     pf_settings_t s = it->job->desc.settings;
     s.threads = w->threads;

@@ -55,7 +55,7 @@ typedef struct s_blob {
 
 /* peers.c: a worker this one serves blob chunks to (a routing identity on
  * the peer ROUTER) and the range it asked: chunks [next, hi) of blob hash. */
-#define S_MAX_CHILDREN 8
+#define S_MAX_CHILDREN 16 /* transfers to children: (child, blob) pairs */
 typedef struct s_child {
     int used;
     uint8_t id[256];
@@ -72,7 +72,8 @@ typedef struct s_strike {
     int n;
 } s_strike;
 
-/* peers.c: the coordinator's latest BLOB_PLAN. */
+/* peers.c: a BLOB_PLAN of the coordinator's (one per blob: the JOB's scene
+ * and maps come with a plan each, from the same source). */
 typedef struct s_plan {
     uint64_t hash, size;
     uint32_t n;
@@ -187,7 +188,8 @@ typedef struct s_worker {
     /* photons.c: the photon job (desc: the scene blob and the pass's
      * settings; maps unused), the batch ranges waiting for its scene blob;
      * the compute thread's own frame of that scene (accel and lights: built
-     * once per scene hash, touched only by the compute thread). */
+     * once per scene hash, touched only by the compute thread; render frames
+     * share it, compute.c). */
     s_job *pjob;
     pf_msg_photon_req_t ph_wait[4];
     int nph_wait;
@@ -203,7 +205,7 @@ typedef struct s_worker {
 
     /* peers.c: fan-out. The ROUTER serving other workers and its port (0:
      * none), the children served, strikes; the DEALER to the current
-     * source, sources struck; the last plan. */
+     * source, sources struck; the latest plans (two blobs). */
     void *psrv;
     uint16_t peer_port;
     s_child children[S_MAX_CHILDREN];
@@ -215,7 +217,8 @@ typedef struct s_worker {
     char pfetch_ep[PF_PROTO_MAX_SOURCE];
     char bad_src[4][PF_PROTO_MAX_SOURCE];
     int nbad_src;
-    s_plan plan;
+    s_plan plans[2];
+    int plan_next; /* the slot the next plan of a new blob takes */
     pf_buf_t penc;
 
     int finished, exit_code;
@@ -282,6 +285,10 @@ void pf_w_photons_drop(s_worker *w, const char *why);
 void pf_w_photons_sent(s_worker *w, s_work *it);
 /* Compute thread: traces a PHOTONS item's batches. */
 void pf_w_compute_photons(s_worker *w, s_work *it);
+/* Compute thread: w->ph_frame made the frame of it's job's scene (accel,
+ * lights; no maps) from it->scene_blob, built only when the scene differs
+ * from the last one built. 0, or -1 with it->error set. */
+int pf_w_scene_frame(s_worker *w, s_work *it);
 
 /* ---- compute.c: the compute thread, its queue and the work items ---- */
 

@@ -18,9 +18,14 @@
  *
  * Tessellated shapes (64 x 32 for spheres, 64 segments for disks and
  * cylinders) have the outward winding of pbrt's parametrization. A sphere
- * stays analytic (pf_sphere_t) when it is full, does not emit (only
- * triangles are lights), is not reversed and its transform is a similarity
- * (rotation, uniform scale, translation) outside any object definition. */
+ * stays analytic (pf_sphere_t) when it is full, is not reversed and its
+ * transform is a similarity (rotation, uniform scale, translation) outside
+ * any object definition; an emissive one only when that transform also
+ * keeps handedness: an analytic sphere emits outward (light/spherelight.h),
+ * and pbrt's sphere flips its normal under ReverseOrientation and under a
+ * mirroring transform, so both stay tessellated as before. Its Le is the
+ * area light's, with "power" over pi 4 pi r^2 as s_place does over a mesh's
+ * area. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -421,11 +426,18 @@ static int s_sphere(pf_pbrt_t *c, pf_pbrt_params_t *ps, int area, pf_pbrt_loc_t 
                                     "sphere: zmin %g, zmax %g, phimax %g: the part is tessellated (%d x %d)", zmin, zmax,
                                     phimax, S_PHI_STEPS, S_THETA_STEPS)))
         return rc;
-    if (full && area < 0 && !c->gs.reverse && c->cur_object < 0 && s_similarity(c->gs.ctm, &s)) {
+    if (full && !c->gs.reverse && c->cur_object < 0 && s_similarity(c->gs.ctm, &s) &&
+        (area < 0 || pf_pbrt_m4_det3(c->gs.ctm) > 0.0)) {
         if (c->shape_alpha &&
             (rc = pf_pbrt_warn(c, loc, "alpha on a sphere (opaque)", "sphere: \"alpha\" is not rendered on spheres")))
             return rc;
-        int pair = pf_pbrt_pair(c, -1, pf_v3s(0.0f), loc);
+        pf_vec3 le = area < 0 ? pf_v3s(0.0f) : c->areas[area].le;
+        if (area >= 0 && c->areas[area].power > 0.0) /* A = 4 pi r^2; twosided emits one side (a warning) */
+            le = pf_scale(le, (float)(c->areas[area].power /
+                                      (M_PI * 4.0 * M_PI * rad * s * rad * s * (c->areas[area].twosided ? 2.0 : 1.0))));
+        if (!pf_is_finite3(le))
+            return pf_pbrt_error_line(c, PF_ERANGE, loc, "the emitted radiance is not finite");
+        int pair = pf_pbrt_pair(c, area, le, loc);
         if (pair < 0)
             return pair;
         pf_pbrt_meshes_t *ms = &c->shapes;

@@ -7,7 +7,9 @@
 #     map blob is several chunks (> 4 MiB). The coordinator's summary line
 #     "blobs from the coordinator: maps S bytes sent for M bytes" must show
 #     S <= 2 x M (without fan-out it is 6 x M), workers must have fetched
-#     the maps from peers, and the image must be bit-identical (cmp) to the
+#     the maps from peers (and the scene, which the workers fetch first to
+#     trace the photons, or with the maps, likewise: "scene S for M",
+#     S <= 2 x M, and plans naming peers), and the image must be bit-identical (cmp) to the
 #     in-process render. Meanwhile a hostile peer (pf_inject garbage and
 #     truncated frames) hits worker w6's peer socket: the worker drops and
 #     strikes what it sends, and serves on.
@@ -120,6 +122,11 @@ figures() {
     sed -nE 's/.*maps ([0-9]+) bytes sent for ([0-9]+) bytes of maps.*fan-out: ([0-9]+) workers? fetched the maps from a peer, ([0-9]+) sent back.*/\1 \2 \3 \4/p' "$1" | tail -n 1
 }
 
+# scene_figures LOG: "SENT SIZE PEERS" of the scene blob from the same line.
+scene_figures() {
+    sed -nE 's/.*, scene ([0-9]+) for ([0-9]+) .* ([0-9]+) scene plans named a peer.*/\1 \2 \3/p' "$1" | tail -n 1
+}
+
 # ---- A: six workers, the coordinator's bytes per map ------------------------------
 start_workers a
 # The hostile peer, from w1's host, at w6's peer port (once w6 has bound it).
@@ -150,6 +157,10 @@ check "A: the map blob is more than 4 chunks (${size:-?} bytes)" [ "${size:-0}" 
 check "A: the coordinator sent <= 2 x the map size (${sent:-?} for ${size:-?})" \
     within "${sent:-}" "${size:-}"
 check "A: at least 4 of the $NW workers fetched the maps from a peer (${peers:-?})" [ "${peers:-0}" -ge 4 ]
+read -r ssent ssize speers <<<"$(scene_figures "$T/a.err")"
+check "A: the coordinator sent <= 2 x the scene size (${ssent:-?} for ${ssize:-?})" within "${ssent:-}" "${ssize:-}"
+check "A: at least 4 of the $NW workers were sent to a peer for the scene (${speers:-?})" [ "${speers:-0}" -ge 4 ]
+check "A: a worker took scene chunks from a peer" grep -qE "fetching blob [0-9a-f]+ from peer" "$T"/a-w*.err
 check "A: no chunk from a peer failed its hash" bash -c "! grep -h 'does not match its chunk hash' $T/a-w*.err"
 check "A: the image is bit-identical to the in-process render" cmp -s "$T/a.pfm" "$T/ref.pfm"
 if [ -n "$ipid" ]; then

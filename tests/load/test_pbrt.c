@@ -165,23 +165,35 @@ static void test_shapes(void)
 {
     pf_error_t err;
     pf_load_report_t rep;
-    /* Analytic when it may be; tessellated when it emits or is reversed. */
+    /* Analytic when it may be, emitting or not; tessellated when it is
+     * reversed, mirrored and emitting, or not a similarity. */
     pf_scene_t *s = s_parse(S_HEAD "AttributeBegin\nTranslate 1 2 3\nRotate 30 1 1 0\nScale 2 2 2\n"
                                    "Shape \"sphere\" \"float radius\" 0.5\nAttributeEnd\n"
                                    "AttributeBegin\nTranslate 0 5 0\nAreaLightSource \"diffuse\"\n"
                                    "Shape \"sphere\"\nAttributeEnd\n"
                                    "AttributeBegin\nTranslate 0 -5 0\nReverseOrientation\n"
                                    "AreaLightSource \"diffuse\"\nShape \"sphere\"\nAttributeEnd\n"
+                                   "AttributeBegin\nTranslate 0 9 0\nScale -1 1 1\n"
+                                   "AreaLightSource \"diffuse\" \"float power\" 10\nShape \"sphere\"\nAttributeEnd\n"
+                                   "AttributeBegin\nTranslate 0 -9 0\nScale 2 2 2\n"
+                                   "AreaLightSource \"diffuse\" \"float power\" 10\nShape \"sphere\"\nAttributeEnd\n"
                                    "Scale 1 2 1\nShape \"sphere\"\n",
                             0, &rep, &err);
-    CHECK(s && s->nspheres == 1 && s->nmeshes == 3, "%s", err.msg);
-    if (s && s->nspheres == 1 && s->nmeshes == 3) {
+    CHECK(s && s->nspheres == 3 && s->nmeshes == 3, "%s", err.msg);
+    if (s && s->nspheres == 3 && s->nmeshes == 3) {
         CHECK(s_vnear(s->spheres[0].center, 1, 2, 3) && s_near(s->spheres[0].radius, 1.0f));
+        CHECK(pf_is_black(s->mats[s->spheres[0].mat].le));
+        CHECK(s_vnear(s->spheres[1].center, 0, 5, 0) && s_near(s->spheres[1].radius, 1.0f) &&
+              !pf_is_black(s->mats[s->spheres[1].mat].le), "an emitting sphere stays analytic");
+        /* power 10 W over pi 4 pi r^2, r = 2 (pbrt's spectrum normalization aside: the same factor as a mesh's) */
+        const pf_material_t *pm = &s->mats[s->spheres[2].mat];
+        CHECK(s_vnear(s->spheres[2].center, 0, -9, 0) && s_near(s->spheres[2].radius, 2.0f) &&
+              fabs(pf_luminance(pm->le) * M_PI * 4.0 * M_PI * 4.0 / 10.0 - 1.0) < 1e-4,
+              "power 10 on a sphere of radius 2: lum(Le) %g", (double)pf_luminance(pm->le));
         CHECK(s->meshes[0].ntris == 3968 && s->meshes[0].nrm != NULL, "%zu triangles", s->meshes[0].ntris);
-        CHECK(s_all_facing(&s->meshes[0], pf_v3(0, 5, 0), 1.0f), "an emitting sphere faces out");
-        CHECK(s_all_facing(&s->meshes[1], pf_v3(0, -5, 0), -1.0f), "a reversed one faces in");
+        CHECK(s_all_facing(&s->meshes[0], pf_v3(0, -5, 0), -1.0f), "a reversed one faces in");
+        CHECK(s->meshes[1].ntris == 3968 && !pf_is_black(s->mats[s->meshes[1].mat[0]].le), "a mirrored one is a mesh");
         CHECK(s_all_facing(&s->meshes[2], pf_v3(0, 0, 0), 1.0f), "an ellipsoid faces out");
-        CHECK(!pf_is_black(s->mats[s->meshes[0].mat[0]].le));
     }
     CHECK(rep.nwarnings == 0, "%s", rep.nwarnings ? rep.warnings[0].first : "");
     pf_scene_destroy(&s);
@@ -716,10 +728,13 @@ static void test_bitterli(void)
             ntris += s->meshes[i].ntris;
             emit += !pf_is_black(s->mats[s->meshes[i].mat[0]].le);
         }
-        /* 4 plates of 12, floor and wall of 2, three emitting spheres of 3968. */
-        CHECK(s->nmeshes == 9 && ntris == 4 * 12 + 2 + 2 + 3 * 3968 && emit == 3 && s->nspheres == 0 &&
-                  s->nlights == 0 && s->nmats == 8,
-              "%zu meshes, %zu triangles, %zu emitting, %zu materials", s->nmeshes, ntris, emit, s->nmats);
+        for (size_t i = 0; i < s->nspheres; i++)
+            emit += !pf_is_black(s->mats[s->spheres[i].mat].le);
+        /* 4 plates of 12, floor and wall of 2, three emitting analytic spheres. */
+        CHECK(s->nmeshes == 6 && ntris == 4 * 12 + 2 + 2 && emit == 3 && s->nspheres == 3 && s->nlights == 0 &&
+                  s->nmats == 8,
+              "%zu meshes, %zu triangles, %zu emitting, %zu spheres, %zu materials", s->nmeshes, ntris, emit,
+              s->nspheres, s->nmats);
         CHECK(s->settings.width == 1280 && s->settings.height == 720 && s->settings.max_depth == 3 &&
               s->settings.path_max_depth == 3);
         /* Its Transform mirrors (det -1, as exporters from right-handed

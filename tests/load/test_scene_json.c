@@ -425,8 +425,6 @@ static void test_bad_inline(void)
           "{ \"materials\": [ { \"name\": \"m\" } ],\n \"objects\": [\n { \"type\": \"sphere\",\n \"center\": [0, 0, 0], \"material\": \"m\" } ] }\n" },
         { 2, "'radius' in sphere must be > 0",
           "{ \"materials\": [ { \"name\": \"m\" } ], \"objects\": [ { \"type\": \"sphere\", \"center\": [0, 0, 0],\n \"radius\": 0, \"material\": \"m\" } ] }\n" },
-        { 2, "emissive spheres are not supported",
-          "{ \"materials\": [ { \"name\": \"m\", \"emission\": 1 } ], \"objects\": [ { \"type\": \"sphere\", \"center\": [0, 0, 0],\n \"radius\": 1, \"material\": \"m\" } ] }\n" },
         { 2, "must scale uniformly",
           "{ \"materials\": [ { \"name\": \"m\" } ], \"objects\": [ { \"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 1, \"material\": \"m\", \"transform\":\n { \"matrix\": [1, 0.5, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0] } } ] }\n" },
         { 2, "quad has no area",

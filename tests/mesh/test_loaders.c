@@ -445,6 +445,7 @@ static void test_mtl_pbr(void)
                                               "newmtl plastic\nKd 0.1 0.2 0.8\nPr 0.3\nPm 0.2\nNi 1.4\n"
                                               "newmtl rough\nKd 0.5\nPr 2\n"
                                               "newmtl chrome\nKd 0.8\nPm 0.7\n"
+                                              "newmtl brass\nKd 0.8\nPm 1\nmap_Kd mask.pgm\n"
                                               "newmtl leaf\nKd 0.2 0.6 0.1\nmap_d -s 2 2 mask.pgm\n"
                                               "newmtl gone\nmap_d missing.png\n");
     pf_scene_t *s = pf_scene_create();
@@ -464,6 +465,9 @@ static void test_mtl_pbr(void)
     CHECK(m && m->type == PF_MAT_COATED && m->alpha == 1.0f && m->ior == 1.5f);
     m = s_mat(s, "chrome"); /* no Pr: a smooth metal */
     CHECK(m && m->type == PF_MAT_CONDUCTOR && m->alpha == 0.0f && s_vnear(m->ks, 0.8f, 0.8f, 0.8f, e));
+    m = s_mat(s, "brass"); /* a metal's map_Kd: its reflectance per hit */
+    CHECK(m && m->type == PF_MAT_CONDUCTOR && m->refl_tex > 0 && m->refl_tex <= s->ntexs && m->kd_tex == 0,
+          "brass: refl_tex %u", m ? (unsigned)m->refl_tex : 0);
     m = s_mat(s, "leaf");
     CHECK(m && m->type == PF_MAT_DIFFUSE && m->alpha_tex > 0 && m->alpha_tex <= s->ntexs, "leaf: alpha_tex %u",
           m ? (unsigned)m->alpha_tex : 0);
