@@ -13,8 +13,30 @@
 #include <stdlib.h>
 
 #include "base/status.h"
+#include "light/lighttab.h"
 
 static float s_mean(pf_vec3 v) { return (v.x + v.y + v.z) * (1.0f / 3.0f); }
+
+/* The guide tables (see the struct); without memory, none (the same picks,
+ * slower). */
+static void s_guides(pf_envlight_t *e)
+{
+    int w = e->map->width, h = e->map->height;
+    e->marg_bits = pf_guide_bits((size_t)h, 1);
+    e->cond_bits = pf_guide_bits((size_t)w, 4);
+    size_t kc = ((size_t)1 << e->cond_bits) + 1;
+    e->marg_guide = malloc((((size_t)1 << e->marg_bits) + 1) * sizeof *e->marg_guide);
+    e->cond_guide = malloc((size_t)h * kc * sizeof *e->cond_guide);
+    if (!e->marg_guide || !e->cond_guide) {
+        free(e->marg_guide);
+        free(e->cond_guide);
+        e->marg_guide = e->cond_guide = NULL;
+        return;
+    }
+    pf_fcdf_guide_fill(e->marg_guide, e->marg_bits, e->marg, h);
+    for (int y = 0; y < h; y++)
+        pf_fcdf_guide_fill(&e->cond_guide[(size_t)y * kc], e->cond_bits, &e->cond[(size_t)y * ((size_t)w + 1)], w);
+}
 
 int pf_envlight_init(pf_envlight_t *e, const pf_envmap_t *map, pf_vec3 scale)
 {
@@ -52,6 +74,7 @@ int pf_envlight_init(pf_envlight_t *e, const pf_envmap_t *map, pf_vec3 scale)
     free(rows);
     e->total = total;
     e->lum = pf_envmap_integral(map, scale, 0);
+    s_guides(e);
     return PF_OK;
 }
 
@@ -59,16 +82,21 @@ void pf_envlight_free(pf_envlight_t *e)
 {
     free(e->marg);
     free(e->cond);
+    free(e->marg_guide);
+    free(e->cond_guide);
     e->marg = e->cond = NULL;
+    e->marg_guide = e->cond_guide = NULL;
 }
 
 pf_vec3 pf_envlight_le(const pf_envlight_t *e, pf_vec3 d) { return pf_mul(e->scale, pf_envmap_lookup(e->map, d)); }
 
 /* The i with c[i] <= u < c[i + 1] in a cdf of n + 1 entries; *f where u lies
- * in that interval, in [0, 1). */
-static int s_find(const float *c, int n, float u, float *f)
+ * in that interval, in [0, 1). The bisection starts from the guide's range
+ * (at, bits: lighttab.h), which ends it on the same i. */
+static int s_find(const float *c, int n, float u, float *f, const uint32_t *at, unsigned bits)
 {
-    int lo = 0, hi = n;
+    int lo, hi;
+    pf_fcdf_guide_range(at, bits, n, u, &lo, &hi);
     while (hi - lo > 1) {
         int mid = (lo + hi) / 2;
         if (c[mid] <= u)
@@ -86,8 +114,9 @@ pf_vec3 pf_envlight_sample(const pf_envlight_t *e, float u1, float u2)
 {
     const pf_envmap_t *m = e->map;
     float fy, fx;
-    int y = s_find(e->marg, m->height, u1, &fy);
-    int x = s_find(&e->cond[(size_t)y * ((size_t)m->width + 1)], m->width, u2, &fx);
+    int y = s_find(e->marg, m->height, u1, &fy, e->marg_guide, e->marg_bits);
+    const uint32_t *row = e->cond_guide ? &e->cond_guide[(size_t)y * (((size_t)1 << e->cond_bits) + 1)] : NULL;
+    int x = s_find(&e->cond[(size_t)y * ((size_t)m->width + 1)], m->width, u2, &fx, row, e->cond_bits);
     return pf_envmap_pixel_dir(m, x, y, fx, fy);
 }
 
@@ -95,5 +124,12 @@ float pf_envlight_pdf(const pf_envlight_t *e, pf_vec3 d)
 {
     if (!(e->total > 0.0))
         return 0.0f;
-    return (float)(s_mean(pf_envlight_le(e, d)) / e->total);
+    return pf_envlight_pdf_le(e, pf_envlight_le(e, d));
+}
+
+float pf_envlight_pdf_le(const pf_envlight_t *e, pf_vec3 le)
+{
+    if (!(e->total > 0.0))
+        return 0.0f;
+    return (float)(s_mean(le) / e->total);
 }

@@ -7,6 +7,8 @@
 #ifndef PF_ENVLIGHT_H
 #define PF_ENVLIGHT_H
 
+#include <stdint.h>
+
 #include "scene/envmap.h"
 
 typedef struct pf_envlight {
@@ -17,6 +19,10 @@ typedef struct pf_envlight {
     double total;           /* sum over pixels of mean(scale * pixel) * solid angle */
     double lum;             /* the integral over the sphere of lum(L): the light's power is pi R^2 lum */
     float pmf;              /* the light table's probability of this entry (set by light.c) */
+    /* Guide tables (lighttab.h) over marg (marg_bits) and over each row of
+     * cond (cond_bits, 2^cond_bits + 1 entries a row); NULL: bisect all. */
+    uint32_t *marg_guide, *cond_guide;
+    unsigned marg_bits, cond_bits;
 } pf_envlight_t;
 
 /* Builds the distribution; PF_ENOMEM. A black map gets total 0 (samples nothing). */
@@ -28,5 +34,7 @@ pf_vec3 pf_envlight_le(const pf_envlight_t *e, pf_vec3 d);
 pf_vec3 pf_envlight_sample(const pf_envlight_t *e, float u1, float u2);
 /* The solid-angle pdf with which pf_envlight_sample returns d. */
 float pf_envlight_pdf(const pf_envlight_t *e, pf_vec3 d);
+/* The same from le = pf_envlight_le(e, d), bit for bit. */
+float pf_envlight_pdf_le(const pf_envlight_t *e, pf_vec3 le);
 
 #endif

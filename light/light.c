@@ -51,6 +51,7 @@
 #include "base/sampling.h"
 #include "light/envlight.h"
 #include "light/lightbvh.h"
+#include "light/lighttab.h"
 #include "light/spherelight.h"
 
 typedef enum { S_AREA, S_POINT, S_DISTANT, S_INFINITE, S_ENVMAP, S_SPHERE } s_kind;
@@ -126,6 +127,10 @@ struct pf_lights {
     uint32_t *unb;
     double *unb_cdf; /* nunb + 1 entries */
     size_t nunb;
+    /* Lookup tables (lighttab.h): guides over cdf and dcdf (one when they
+     * are one), the area entries' records, entries [0, narea). */
+    pf_cdf_guide_t cdf_guide, dcdf_guide;
+    pf_emit_tri_t *tris;
 };
 
 float pf_spot_falloff(const pf_light_t *l, float cos_theta)
@@ -257,19 +262,6 @@ static int s_direct_table(pf_lights_t *self)
     return 0;
 }
 
-/* The unit face normal of an emissive triangle, oriented as s_tri_point's. */
-static pf_vec3 s_tri_normal(const pf_scene_t *scene, uint32_t m, uint32_t t, pf_vec3 *p)
-{
-    const pf_mesh_t *mesh = &scene->meshes[m];
-    const uint32_t *v = &mesh->idx[3 * t];
-    for (int k = 0; k < 3; k++)
-        p[k] = mesh->pos[v[k]];
-    pf_vec3 n = pf_norm(pf_cross(pf_sub(p[1], p[0]), pf_sub(p[2], p[0])));
-    if (mesh->nrm)
-        n = pf_face_forward(n, pf_add(pf_add(mesh->nrm[v[0]], mesh->nrm[v[1]]), mesh->nrm[v[2]]));
-    return n;
-}
-
 /* pbrt's LightBounds of a bounded entry (area, point, spot): an area
  * triangle one-sided along its normal, light leaving over pi/2 about it; a
  * point light in every direction; a spot in its inner cone, spreading to the
@@ -280,10 +272,10 @@ static pf_light_bounds_t s_entry_bounds(const pf_lights_t *self, const pf_scene_
     pf_light_bounds_t b = { .phi = 0.0f, .w = pf_v3(0, 0, 1), .cos_theta_o = -1.0f, .cos_theta_e = 0.0f };
     double p = self->power * (self->cdf[i + 1] - self->cdf[i]);
     if (e->kind == S_AREA) {
-        pf_vec3 v[3];
-        b.w = s_tri_normal(scene, e->mesh, e->tri, v);
-        b.lo = pf_vmin(v[0], pf_vmin(v[1], v[2]));
-        b.hi = pf_vmax(v[0], pf_vmax(v[1], v[2]));
+        const pf_emit_tri_t *t = &self->tris[i]; /* built before (s_build_tables) */
+        b.w = t->n;
+        b.lo = pf_vmin(t->p0, pf_vmin(t->p1, t->p2));
+        b.hi = pf_vmax(t->p0, pf_vmax(t->p1, t->p2));
         b.cos_theta_o = 1.0f;
         b.phi = (float)p;
         return b;
@@ -410,6 +402,17 @@ static int s_build_pick(pf_lights_t *self, const pf_scene_t *scene)
     return 0;
 }
 
+/* The lookup tables (see the struct); nonzero when out of memory. */
+static int s_build_tables(pf_lights_t *self, const pf_scene_t *scene)
+{
+    self->tris = malloc((self->narea ? self->narea : 1) * sizeof *self->tris);
+    if (!self->tris || pf_cdf_guide_build(&self->cdf_guide, self->cdf, self->n))
+        return 1;
+    for (size_t i = 0; i < self->narea; i++)
+        self->tris[i] = pf_emit_tri_make(scene, self->entries[i].mesh, self->entries[i].tri, self->entries[i].area);
+    return self->dcdf != self->cdf && pf_cdf_guide_build(&self->dcdf_guide, self->dcdf, self->n);
+}
+
 pf_lights_t *pf_lights_build(const pf_scene_t *scene)
 {
     pf_lights_t *self = calloc(1, sizeof *self);
@@ -494,7 +497,7 @@ pf_lights_t *pf_lights_build(const pf_scene_t *scene)
     for (size_t i = 0; i < self->n; i++)
         self->cdf[i] /= acc;
     self->cdf[self->n] = 1.0;
-    if (s_direct_table(self)) {
+    if (s_direct_table(self) || s_build_tables(self, scene)) {
         pf_lights_destroy(&self);
         return NULL;
     }
@@ -526,6 +529,9 @@ void pf_lights_destroy(pf_lights_t **self_p)
     pf_lightbvh_destroy(&(*self_p)->bvh);
     free((*self_p)->unb);
     free((*self_p)->unb_cdf);
+    free((*self_p)->tris);
+    pf_cdf_guide_free(&(*self_p)->cdf_guide);
+    pf_cdf_guide_free(&(*self_p)->dcdf_guide);
     free(*self_p);
     *self_p = NULL;
 }
@@ -541,10 +547,22 @@ pf_vec3 pf_lights_sky(const pf_lights_t *self, pf_vec3 d)
 
 float pf_lights_sky_pdf(const pf_lights_t *self, pf_vec3 n, pf_vec3 d)
 {
-    float pdf = pf_is_black(n) ? self->sky_pmf / (4.0f * PF_PI) : self->sky_pmf * fmaxf(0.0f, pf_dot(n, d)) * PF_INV_PI;
-    for (size_t i = 0; i < self->nenv; i++)
-        pdf += self->env[i].pmf * pf_envlight_pdf(&self->env[i], d);
+    float pdf;
+    pf_lights_sky_mis(self, n, d, &pdf);
     return pdf;
+}
+
+pf_vec3 pf_lights_sky_mis(const pf_lights_t *self, pf_vec3 n, pf_vec3 d, float *pdf)
+{
+    pf_vec3 L = self->sky;
+    float p = pf_is_black(n) ? self->sky_pmf / (4.0f * PF_PI) : self->sky_pmf * fmaxf(0.0f, pf_dot(n, d)) * PF_INV_PI;
+    for (size_t i = 0; i < self->nenv; i++) { /* one map lookup for both */
+        pf_vec3 le = pf_envlight_le(&self->env[i], d);
+        L = pf_add(L, le);
+        p += self->env[i].pmf * pf_envlight_pdf_le(&self->env[i], le);
+    }
+    *pdf = p;
+    return L;
 }
 
 /* A sky direction drawn by the picked sky entry e (constant: uniform, or
@@ -560,8 +578,8 @@ static int s_sky_mixture(const pf_lights_t *self, const s_entry *e, pf_vec3 n, c
         wi = pf_sample_sphere(u[1], u[2]);
     else
         wi = pf_to_world(pf_sample_cosine(u[1], u[2]), n);
-    float pdf = pf_lights_sky_pdf(self, n, wi);
-    pf_vec3 L = pf_lights_sky(self, wi);
+    float pdf;
+    pf_vec3 L = pf_lights_sky_mis(self, n, wi, &pdf);
     if (!(pdf > 0.0f) || pf_is_black(L))
         return 0;
     out->wi = wi;
@@ -576,14 +594,8 @@ size_t pf_lights_count(const pf_lights_t *self) { return self->n; }
  * *pmf its probability. */
 static size_t s_pick(const pf_lights_t *self, const double *cdf, float u, double *pmf)
 {
-    size_t lo = 0, hi = self->n;
-    while (hi - lo > 1) {
-        size_t mid = (lo + hi) / 2;
-        if (cdf[mid] <= u)
-            lo = mid;
-        else
-            hi = mid;
-    }
+    const pf_cdf_guide_t *g = cdf == self->cdf ? &self->cdf_guide : &self->dcdf_guide;
+    size_t lo = pf_cdf_guide_pick(g, cdf, self->n, u);
     *pmf = cdf[lo + 1] - cdf[lo];
     return lo;
 }
@@ -627,30 +639,16 @@ static size_t s_pick_direct(const pf_lights_t *self, pf_vec3 x, pf_vec3 n, float
     return id;
 }
 
-/* A uniform point on an emissive triangle, its unit face normal and error bound. */
-static void s_tri_point(const pf_scene_t *scene, const s_entry *e, float u1, float u2, pf_vec3 *p, pf_vec3 *n,
-                        pf_vec3 *perr)
-{
-    const pf_mesh_t *mesh = &scene->meshes[e->mesh];
-    const uint32_t *v = &mesh->idx[3 * e->tri];
-    pf_vec3 p0 = mesh->pos[v[0]], p1 = mesh->pos[v[1]], p2 = mesh->pos[v[2]];
-    float b0, b1;
-    pf_sample_triangle(u1, u2, &b0, &b1);
-    float b2 = 1.0f - b0 - b1;
-    *p = pf_add(pf_add(pf_scale(p0, b0), pf_scale(p1, b1)), pf_scale(p2, b2));
-    *n = pf_norm(pf_cross(pf_sub(p1, p0), pf_sub(p2, p0)));
-    if (mesh->nrm) /* as in accel.c: vertex normals orient the face */
-        *n = pf_face_forward(*n, pf_add(pf_add(mesh->nrm[v[0]], mesh->nrm[v[1]]), mesh->nrm[v[2]]));
-    *perr = pf_tri_point_error(p0, p1, p2, b0, b1, b2);
-}
-
-/* A uniform point on a triangle or sphere entry (as s_tri_point); returns its Le. */
-static pf_vec3 s_surface_point(const pf_scene_t *scene, const s_entry *e, const float *u, pf_vec3 *p, pf_vec3 *n,
-                               pf_vec3 *perr)
+/* A uniform point on a triangle (its record) or sphere entry, its unit
+ * face normal and error bound; returns its Le. */
+static pf_vec3 s_surface_point(const pf_lights_t *self, const pf_scene_t *scene, const s_entry *e, const float *u,
+                               pf_vec3 *p, pf_vec3 *n, pf_vec3 *perr)
 {
     if (e->kind == S_AREA) {
-        s_tri_point(scene, e, u[0], u[1], p, n, perr);
-        return scene->mats[scene->meshes[e->mesh].mat[e->tri]].le;
+        const pf_emit_tri_t *t = &self->tris[e - self->entries];
+        *p = pf_emit_tri_point(t, u[0], u[1], perr);
+        *n = t->n;
+        return t->le;
     }
     pf_sphere_light_point(&scene->spheres[e->light], u[0], u[1], p, n, perr);
     return scene->mats[scene->spheres[e->light].mat].le;
@@ -671,10 +669,9 @@ int pf_lights_sample_direct_at(const pf_lights_t *self, const pf_scene_t *scene,
     size_t pick = s_pick_direct(self, x, n, u[0], &pmf);
     if (pick == SIZE_MAX || !(pmf > 0.0))
         return 0;
-    const s_entry *e = &self->entries[pick];
-    if (e->kind == S_AREA) {
-        pf_vec3 p, n, perr;
-        s_tri_point(scene, e, u[1], u[2], &p, &n, &perr);
+    if (pick < self->narea) { /* an area entry: its record alone */
+        const pf_emit_tri_t *t = &self->tris[pick];
+        pf_vec3 p = pf_emit_tri_point(t, u[1], u[2], NULL), n = t->n;
         pf_vec3 d = pf_sub(p, x);
         float d2 = pf_len2(d);
         if (!(d2 > 0.0f))
@@ -684,14 +681,15 @@ int pf_lights_sample_direct_at(const pf_lights_t *self, const pf_scene_t *scene,
         float cos_l = -pf_dot(wi, n);
         if (cos_l <= 0.0f)
             return 0; /* one-sided: x is behind the emitter */
-        pf_vec3 le = scene->mats[scene->meshes[e->mesh].mat[e->tri]].le;
-        float pdf_area = (float)pmf / e->area;
+        pf_vec3 le = t->le;
+        float pdf_area = (float)pmf / t->area;
         out->wi = wi;
         out->dist = dist;
         out->weight = pf_scale(le, cos_l / (d2 * pdf_area));
         out->pdf = pdf_area * d2 / cos_l;
         return 1;
     }
+    const s_entry *e = &self->entries[pick];
     if (e->kind == S_SPHERE) { /* uniform in its cone: Le / (pmf pdf) */
         const pf_sphere_t *sp = &scene->spheres[e->light];
         if (!pf_sphere_light_sample(sp, x, u[1], u[2], &out->wi, &out->dist, &out->pdf))
@@ -779,7 +777,7 @@ float pf_lights_pdf_at(const pf_lights_t *self, const pf_scene_t *scene, pf_vec3
     if (lo == self->narea || self->entries[lo].mesh != geom || self->entries[lo].tri != prim)
         return 0.0f;
     const s_entry *e = &self->entries[lo];
-    pf_vec3 v[3], n = s_tri_normal(scene, e->mesh, e->tri, v); /* exactly as s_tri_point makes it */
+    pf_vec3 n = self->tris[lo].n; /* the normal exactly as s_surface_point gives it */
     pf_vec3 d = pf_sub(p, x);
     float d2 = pf_len2(d);
     if (!(d2 > 0.0f))
@@ -815,7 +813,7 @@ int pf_lights_emit(const pf_lights_t *self, const pf_scene_t *scene, const float
     double pmf;
     const s_entry *e = &self->entries[s_pick(self, self->cdf, u[0], &pmf)];
     if (e->kind == S_AREA || e->kind == S_SPHERE) {
-        pf_vec3 p, n, perr, le = s_surface_point(scene, e, &u[1], &p, &n, &perr);
+        pf_vec3 p, n, perr, le = s_surface_point(self, scene, e, &u[1], &p, &n, &perr);
         pf_vec3 local = pf_sample_cosine(u[3], u[4]);
         /* Le cos / (pdf_area pdf_dir) = Le cos / ((pmf / A) (cos / pi)) = Le A pi / pmf. */
         out->ray = (pf_ray_t){ p, pf_to_world(local, n) };
@@ -930,7 +928,7 @@ int pf_lights_emit_targeted(const pf_lights_t *self, const pf_scene_t *scene, co
     const pf_light_t *l = NULL;
     int surface = e->kind == S_AREA || e->kind == S_SPHERE;
     if (surface) {
-        le = s_surface_point(scene, e, &u[1], &p, &n, &perr);
+        le = s_surface_point(self, scene, e, &u[1], &p, &n, &perr);
     } else {
         l = &scene->lights[e->light];
         p = l->pos;

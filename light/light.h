@@ -32,6 +32,9 @@ pf_vec3 pf_lights_sky(const pf_lights_t *self, pf_vec3 d);
  * infinite lights make one emitter: their radiances add; with maps, the
  * mixture of every sky entry's pmf times its pdf.) */
 float pf_lights_sky_pdf(const pf_lights_t *self, pf_vec3 n, pf_vec3 d);
+/* pf_lights_sky(d) and, in *pdf, pf_lights_sky_pdf(n, d), bit for bit,
+ * each map read once for both. */
+pf_vec3 pf_lights_sky_mis(const pf_lights_t *self, pf_vec3 n, pf_vec3 d, float *pdf);
 
 /* Total emitted power (W, luminance-weighted) and the number of emitters. */
 double pf_lights_power(const pf_lights_t *self);

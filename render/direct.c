@@ -115,12 +115,12 @@ pf_vec3 pf_direct_light(const pf_render_ctx_t *c, pf_rng_t *rng, const pf_hit_t 
  * against that point's light samples (s_connect's other half). */
 pf_vec3 pf_direct_gather_sky(const pf_render_ctx_t *c, pf_vec3 ns, int ng, pf_vec3 d)
 {
-    pf_vec3 sky = pf_lights_sky(c->lights, d);
+    float pl; /* its pdf from the same map lookup */
+    pf_vec3 sky = pf_lights_sky_mis(c->lights, ns, d, &pl);
     float cos = pf_dot(d, ns);
     if (pf_is_black(sky) || !(cos > 0.0f))
         return pf_v3s(0.0f);
     int nl = c->settings.light_samples > 0 ? c->settings.light_samples : 1;
-    float pl = pf_lights_sky_pdf(c->lights, ns, d);
     return pf_scale(sky, pf_mis_power((float)ng, cos * PF_INV_PI, (float)nl, pl));
 }
 

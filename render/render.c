@@ -454,12 +454,12 @@ static pf_vec3 s_emitted(const s_state *st, const pf_hit_t *h, const pf_material
 static pf_vec3 s_sky(const s_state *st, pf_vec3 d, int count_le)
 {
     const pf_render_ctx_t *c = st->ctx;
-    pf_vec3 sky = pf_lights_sky(c->lights, d);
+    float pl = 0.0f; /* with count_le 2, its pdf from the same map lookup */
+    pf_vec3 sky = count_le == 2 ? pf_lights_sky_mis(c->lights, st->mis_n, d, &pl) : pf_lights_sky(c->lights, d);
     if (!count_le || pf_is_black(sky) || !(c->terms & (count_le == 2 ? PF_TERM_DIRECT : PF_TERM_EMITTED)))
         return pf_v3s(0.0f);
     if (count_le == 1)
         return sky;
-    float pl = pf_lights_sky_pdf(c->lights, st->mis_n, d);
     return pf_scale(sky, pf_mis_power(1.0f, st->mis_pdf, (float)st->mis_nl, pl));
 }
 
