@@ -172,8 +172,12 @@ def parse_farm_log(text):
     out['t_summary'] = stamp(ln) if ln else None
     _, m = first(lines, r'done in ([\d.]+) s')
     out['done_s'] = float(m.group(1)) if m else None
-    # The first worker's maps fetch and build (local-1 or w1).
-    ln, _ = first(lines, r'blob [0-9a-f]+ complete \((\d{6,}) bytes\)')
+    # The first worker's maps fetch and build (local-1 or w1): the JOB's
+    # build starts as its blobs are complete (the first large blob to
+    # complete may be the irradiance's global map, fetched earlier).
+    ln, _ = first(lines, r'job \d+: building the scene and photon maps')
+    if not ln:
+        ln, _ = first(lines, r'blob [0-9a-f]+ complete \((\d{6,}) bytes\)')
     t_fetched = stamp(ln) if ln else None
     ln, _ = first(lines, r'job \d+: ready \(')
     t_ready = stamp(ln) if ln else None
