@@ -8,52 +8,15 @@
 #include "base/sampling.h"
 #include "material/bsdf.h"
 
-/* Whether v is 0 or of a magnitude whose products and quotients below
- * neither overflow nor underflow. */
-static inline int s_tame(double v)
-{
-    double m = fabs(v);
-    return m == 0.0 || (m > 0x1p-400 && m < 0x1p400);
-}
-
-/* (a + bi) / (c + di), bit for bit what the division operator gives
- * (libgcc's __divdc3), inline: for tame operands its scalings by powers of
- * two change no rounding and its subnormal branch is not taken, so its main
- * path, Smith's algorithm in the same order, is the whole of it; anything
- * else goes to the operator. The call was 2.5 % of veach-mis (three
- * divisions per channel of every conductor's Fresnel). */
-static inline double complex s_cdiv(double a, double b, double c, double d)
-{
-    if (s_tame(a) && s_tame(b) && s_tame(c) && s_tame(d) && (c != 0.0 || d != 0.0)) {
-        double ratio, denom, x, y;
-        if (fabs(c) < fabs(d)) {
-            ratio = c / d;
-            denom = (c * ratio) + d;
-            x = ((a * ratio) + b) / denom;
-            y = ((b * ratio) - a) / denom;
-        } else {
-            ratio = d / c;
-            denom = (d * ratio) + c;
-            x = ((b * ratio) + a) / denom;
-            y = (b - (a * ratio)) / denom;
-        }
-        if (fabs(ratio) > 0x1p-400 && isfinite(x) && isfinite(y))
-            return CMPLX(x, y);
-    }
-    return CMPLX(a, b) / CMPLX(c, d);
-}
-
 float pf_fresnel_complex(float cos_i, float eta, float k)
 {
     double c = fmin(fmax((double)cos_i, 0.0), 1.0);
     double complex e = (double)eta + (double)k * I;
     double sin2_i = 1.0 - c * c;
-    double complex e2 = e * e;
-    double complex sin2_t = s_cdiv(sin2_i, 0.0, creal(e2), cimag(e2));
+    double complex sin2_t = sin2_i / (e * e);
     double complex cos_t = csqrt(1.0 - sin2_t);
-    double complex np = e * c - cos_t, dp = e * c + cos_t, ns = c - e * cos_t, ds = c + e * cos_t;
-    double complex r_parl = s_cdiv(creal(np), cimag(np), creal(dp), cimag(dp));
-    double complex r_perp = s_cdiv(creal(ns), cimag(ns), creal(ds), cimag(ds));
+    double complex r_parl = (e * c - cos_t) / (e * c + cos_t);
+    double complex r_perp = (c - e * cos_t) / (c + e * cos_t);
     double n1 = creal(r_parl) * creal(r_parl) + cimag(r_parl) * cimag(r_parl);
     double n2 = creal(r_perp) * creal(r_perp) + cimag(r_perp) * cimag(r_perp);
     return (float)(0.5 * (n1 + n2));
