@@ -9,6 +9,7 @@ pass=0
 fail=0
 skipped=0
 known=0
+failed=()
 
 ok() {
     pass=$((pass + 1))
@@ -16,6 +17,7 @@ ok() {
 }
 bad() {
     fail=$((fail + 1))
+    failed+=("$*")
     echo "FAIL    $*"
 }
 skip() {
@@ -45,4 +47,20 @@ note() { echo "        $*"; }
 show() {
     [ -s "$1" ] && tail -n "${2:-12}" "$1" | sed "s|^|        $(basename "$1"): |"
     return 0
+}
+# finish: the failed checks again (a long log's tail, which is all CI may
+# keep, still names them), then the closing line; returns 0 only when none
+# failed.
+finish() {
+    local f
+    for f in "${failed[@]}"; do
+        echo "failed: $f"
+    done
+    [ "$known" -gt 0 ] && echo "$known known bug(s) reported above (not counted as failures)"
+    if [ "$skipped" -gt 0 ]; then
+        echo "$pass passed, $fail failed, $skipped skipped"
+    else
+        echo "$pass passed, $fail failed"
+    fi
+    [ "$fail" -eq 0 ]
 }

@@ -35,37 +35,21 @@ DATA=$ROOT/tests/data/cli
 SCENES=$ROOT/scenes
 SMALL=(--spp 1 --photons 20000 --caustic-photons 20000 --gather 8 -q)
 
-pass=0
-fail=0
-known=0
+# shellcheck source=tests/integration/lib.sh
+. "$ROOT/tests/integration/lib.sh"
 
-# check MESSAGE COMMAND...: one check; passes when COMMAND succeeds.
+# check MESSAGE COMMAND...: one check; passes when COMMAND succeeds. A
+# failure names the last photonfarm command and shows its stderr.
 check() {
     local msg=$1
     shift
     if "$@"; then
-        pass=$((pass + 1))
-        echo "ok      $msg"
+        ok "$msg"
     else
-        fail=$((fail + 1))
-        echo "FAIL    $msg (last command: $LAST, exit $rc)"
+        bad "$msg (last command: $LAST, exit $rc)"
         if [ -s "$T/err" ]; then
             sed 's/^/        stderr: /' "$T/err" | head -5
         fi
-    fi
-}
-
-# known_bug MESSAGE COMMAND...: like check, but a failure is reported as a
-# known bug and does not fail the suite.
-known_bug() {
-    local msg=$1
-    shift
-    if "$@"; then
-        pass=$((pass + 1))
-        echo "ok      $msg (known bug appears fixed: make this a plain check)"
-    else
-        known=$((known + 1))
-        echo "KNOWN BUG: $msg (last command: $LAST, exit $rc)"
     fi
 }
 
@@ -549,8 +533,4 @@ check "SIGTERM during a farm's progressive passes exits 143" rc_is 143
 check "... within 2 s of the signal (took $wall s)" within 1.5
 check "... and writes the image of the passes done" pfm_clean "$T/sigp.pfm"
 
-if [ "$known" -gt 0 ]; then
-    echo "($known known bugs reported above do not count as failures)"
-fi
-echo "$pass passed, $fail failed"
-[ "$fail" -eq 0 ]
+finish

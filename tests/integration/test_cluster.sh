@@ -229,10 +229,10 @@ worker() {
     LASTPID=$!
 }
 
-# finish PID SECONDS: waits for a coordinator (bounded; timeout(1) inside
+# wait_coord PID SECONDS: waits for a coordinator (bounded; timeout(1) inside
 # bounds it too) and leaves its exit code in $rc.
 rc=0
-finish() {
+wait_coord() {
     local end=$((SECONDS + $2))
     while kill -0 "$1" 2>/dev/null && [ "$SECONDS" -lt "$end" ]; do
         sleep 0.1
@@ -298,7 +298,7 @@ part_a() {
     worker w1 "$NS_W1"
     worker w2 "$NS_W2"
     W2=$LASTPID
-    finish "$coord" 90
+    wait_coord "$coord" 90
     completed "A: the render across namespaces completes" "$T/a.err" || return 1
     check "A: CURVE is on, both worker keys allowed" has "$T/a.err" 'CURVE on: 2 worker keys allowed'
     check "A: the image is bit-identical to the in-process render" same "$T/a.pfm" "$T/ref_small.pfm"
@@ -326,7 +326,7 @@ part_b() {
         bad "B: both workers got the job (logs below)"
         show "$T/w1.err" 5
         show "$T/w2.err" 5
-        finish "$coord" 60
+        wait_coord "$coord" 60
         return 1
     fi
     sleep 1 # tiles in flight on both workers
@@ -360,7 +360,7 @@ part_b() {
     T_UP=$(now)
     W2_FROM_UP=$(lines "$T/w2.err")
     ip -n "$NS_BR" link set "$PORT_W2" up
-    finish "$coord" 90
+    wait_coord "$coord" 90
     completed "B: the render completes after the link loss" "$T/b.err" || return 1
     check "B: the image is bit-identical to the in-process render" same "$T/b.pfm" "$T/ref_big.pfm"
     n=$(summary_num "$T/b.err" re-issued)
@@ -392,7 +392,7 @@ part_c() {
         bad "C: w2 registers again within 60 s of its link coming back"
         show "$T/w2.err" 8
     fi
-    finish "$coord" 90
+    wait_coord "$coord" 90
     completed "C: the next job completes" "$T/c.err" || return 1
     n2=$(tiles_of "$T/c.err" w2)
     n1=$(tiles_of "$T/c.err" w1)
@@ -418,14 +418,14 @@ part_d() {
     check "D: the tbf qdisc is on w2's bridge port" has <(ip netns exec "$NS_BR" tc qdisc show dev "$PORT_W2") 'tbf'
     # A fresh w2 has no cached blobs, so the maps cross the slow link.
     kill -TERM "$W2" 2>/dev/null
-    finish "$W2" 10
+    wait_coord "$W2" 10
     local from2 coord n1 n2 t_fetch t_built blob min_s
     from2=$(lines "$T/w2.err")
     worker w2 "$NS_W2"
     W2=$LASTPID
     coordinator d SMALL --min-workers 2
     coord=$LASTPID
-    finish "$coord" 120
+    wait_coord "$coord" 120
     completed "D: the render completes with w2 behind the slow link" "$T/d.err" || return 1
     check "D: the image is bit-identical to the in-process render" same "$T/d.pfm" "$T/ref_small.pfm"
     n1=$(tiles_of "$T/d.err" w1)
@@ -474,6 +474,4 @@ for ns in "${NAMESPACES[@]}"; do
 done
 check "every namespace (and with it every veth and the bridge) is gone${left:+:$left}" eq "$left" ""
 
-[ "$known" -gt 0 ] && echo "$known known bug(s) reported above (not counted as failures)"
-echo "$pass passed, $fail failed, $skipped skipped"
-[ "$fail" -eq 0 ]
+finish

@@ -74,9 +74,8 @@ trap cleanup EXIT
 trap 'exit 130' INT TERM
 # shellcheck source=tests/integration/lib.sh
 . "$(dirname "$0")/lib.sh"
-finish() {
-    echo "$pass passed, $fail failed"
-    [ "$fail" -eq 0 ]
+fanout_finish() {
+    finish
     exit $?
 }
 # within SENT SIZE: SIZE <= SENT <= 2 x SIZE (and both known).
@@ -97,7 +96,7 @@ done
 if ! timeout 120 "$PF" render "$SCENE" -o "$T/ref.png" --hdr "$T/ref.pfm" "${RENDER[@]}" --workers 0 -q 2>"$T/ref.err"; then
     bad "the in-process reference render"
     show "$T/ref.err"
-    finish
+    fanout_finish
 fi
 
 # start_workers RUN: six fresh workers, one a namespace; pids in WPIDS.
@@ -210,4 +209,4 @@ check "B: its children fell back to the coordinator ($falls)" [ "$falls" -ge 1 ]
 check "B: the image is bit-identical to the in-process render" cmp -s "$T/b.pfm" "$T/ref.pfm"
 [ "$rc" -eq 0 ] || show "$T/b.err"
 
-finish
+fanout_finish

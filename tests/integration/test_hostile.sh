@@ -449,5 +449,4 @@ for p in "${PIDS[@]}"; do
     kill -9 "$p" 2>/dev/null
 done
 wait 2>/dev/null
-echo "$pass passed, $fail failed"
-[ "$fail" -eq 0 ]
+finish
