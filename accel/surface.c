@@ -70,8 +70,10 @@ pf_material_t pf_material_at(const pf_scene_t *scene, const pf_hit_t *hit)
         for (int d = 0; d <= PF_MIX_MAX_DEPTH && scene->mats[i].type == PF_MAT_MIX; d++)
             i = pf_mix_choose(scene, hit, i);
         pf_vec3 le = m.le;
+        uint32_t twosided = m.twosided;
         m = scene->mats[i];
         m.le = le;
+        m.twosided = twosided;
         if (m.type == PF_MAT_MIX) { /* unreachable after finalize: a black surface */
             m.type = PF_MAT_DIFFUSE;
             m.kd = m.ks = pf_v3s(0.0f);

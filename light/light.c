@@ -1,7 +1,8 @@
 /* light.c: the power-weighted emitter table; see light.h.
  *
  * Emitters are sampled by their share of the total power (luminance of the
- * emitted flux): an area triangle emits pi A lum(Le), a point light
+ * emitted flux): an area triangle emits pi A lum(Le) (twice that when its
+ * material is two-sided: the same Le leaves its back), a point light
  * 4 pi lum(I), a spot 2 pi lum(I) times the integral of its falloff, a
  * distant light pi R^2 lum(E): the flux of its irradiance E through the
  * disc that the scene's bounding sphere (radius R) casts, which is all of
@@ -43,22 +44,23 @@
  * draws it uniformly in the cone it subtends from the receiver (nothing from
  * inside), pf_lights_pdf_at gives that pdf for a hit on it, photons start
  * uniformly on it (spherelight.c); in the BVH it is bounded by its box and
- * emits in every direction. */
+ * emits in every direction.
+ *
+ * A two-sided triangle (its material's twosided) is seen from both sides:
+ * a light sample that reaches its back carries Le with |cos_l|, and its
+ * solid-angle pdf (pf_lights_pdf_at too) divides by |cos_l|, as pbrt-v4's
+ * DiffuseAreaLight with twoSided. Photons leave it from emit.c. */
 #include "light/light.h"
 
 #include <stdlib.h>
 
 #include "base/sampling.h"
-#include "light/envlight.h"
-#include "light/lightbvh.h"
-#include "light/lighttab.h"
+#include "light/light_impl.h"
 #include "light/spherelight.h"
-
-typedef enum { S_AREA, S_POINT, S_DISTANT, S_INFINITE, S_ENVMAP, S_SPHERE } s_kind;
 
 /* The entries the light BVH holds (a position and bounds): triangles,
  * spheres, point and spot lights. */
-static int s_bounded(s_kind k) { return k == S_AREA || k == S_SPHERE || k == S_POINT; }
+static int s_bounded(pf_light_kind k) { return k == PF_ENTRY_AREA || k == PF_ENTRY_SPHERE || k == PF_ENTRY_POINT; }
 
 /* The share of direct light's samples drawn by power when the BVH is in use:
  * a defensive mixture. The BVH's importance is a bound and can be far off
@@ -80,58 +82,6 @@ static int s_bounded(s_kind k) { return k == S_AREA || k == S_SPHERE || k == S_P
  * now three analytic sphere lights, are three groups: the power table). */
 #define S_MIN_GROUPS 8
 
-typedef struct s_entry {
-    s_kind kind;
-    uint32_t mesh, tri; /* area */
-    uint32_t light;     /* point, spot, distant or infinite; the index into env for S_ENVMAP; the sphere's */
-    float area;         /* area and sphere */
-    /* A point light outside the scene's bounding sphere emits photons only
-     * into the cone that holds the sphere (cos_max > -1; axis towards the
-     * centre): the others would leave the scene unseen. */
-    pf_vec3 axis;
-    float cos_max;
-} s_entry;
-
-struct pf_lights {
-    s_entry *entries;
-    double *cdf; /* n + 1 entries, cdf[n] = 1: photon emission's choice, by power */
-    /* Direct light's choice: the same entries by power, but the distant
-     * lights (deltas, few) at zero, since every direct estimate takes each
-     * of them with a shadow ray of its own (pf_lights_distant); dcdf is cdf
-     * itself when there are none, and all zero when only distant lights
-     * remain (nothing to choose). */
-    double *dcdf;
-    uint32_t *distant; /* the entries of the distant lights */
-    size_t ndistant;
-    size_t n;
-    size_t narea; /* entries [0, narea) are the area lights, sorted by (mesh, tri) */
-    uint32_t *sphere_entry; /* sphere index -> 1 + its entry, 0 none; NULL without spheres */
-    double power;
-    /* The scene's bounding sphere (radius 0 without geometry): distant
-     * lights shine through the disc it casts. */
-    pf_vec3 center;
-    float radius;
-    pf_vec3 sky;   /* the radiance of the infinite lights, summed: one entry, the last */
-    float sky_pmf; /* that entry's probability (0: none) */
-    pf_envlight_t *env; /* the image-based infinite lights */
-    size_t nenv;
-    /* Direct light's choice (s_pick_direct): NULL bvh: by power, the
-     * table's cdf; else a defensive mixture: with probability S_DEFENSIVE by
-     * power, else the bounded emitters through the light BVH with
-     * probability 1 - p_inf and the unbounded ones (distant lights, the sky
-     * entries) by their power among themselves (unb, unb_cdf; their summed
-     * share pu) with probability p_inf. */
-    pf_lightbvh_t *bvh;
-    float p_inf;
-    double pu;
-    uint32_t *unb;
-    double *unb_cdf; /* nunb + 1 entries */
-    size_t nunb;
-    /* Lookup tables (lighttab.h): guides over cdf and dcdf (one when they
-     * are one), the area entries' records, entries [0, narea). */
-    pf_cdf_guide_t cdf_guide, dcdf_guide;
-    pf_emit_tri_t *tris;
-};
 
 float pf_spot_falloff(const pf_light_t *l, float cos_theta)
 {
@@ -176,8 +126,8 @@ static void s_bounding_sphere(const pf_scene_t *scene, pf_vec3 *c, float *r)
 }
 
 /* Points a point light's emission at the scene when it lies outside its
- * bounding sphere (see s_entry). */
-static void s_aim_at_scene(const pf_lights_t *self, const pf_scene_t *scene, s_entry *e)
+ * bounding sphere (see pf_light_entry_t). */
+static void s_aim_at_scene(const pf_lights_t *self, const pf_scene_t *scene, pf_light_entry_t *e)
 {
     const pf_light_t *l = &scene->lights[e->light];
     if (l->type != PF_LIGHT_POINT || !(self->radius > 0.0f))
@@ -222,7 +172,8 @@ static int s_add_envmap(pf_lights_t *self, const pf_scene_t *scene, const pf_lig
         pf_envlight_free(e);
         return 0;
     }
-    self->entries[self->n] = (s_entry){ .kind = S_ENVMAP, .light = (uint32_t)self->nenv++, .cos_max = -1.0f };
+    self->entries[self->n] =
+        (pf_light_entry_t){ .kind = PF_ENTRY_ENVMAP, .light = (uint32_t)self->nenv++, .cos_max = -1.0f };
     self->cdf[self->n++] = *acc;
     *acc += p;
     return 0;
@@ -233,7 +184,7 @@ static int s_add_envmap(pf_lights_t *self, const pf_scene_t *scene, const pf_lig
 static int s_direct_table(pf_lights_t *self)
 {
     for (size_t i = 0; i < self->n; i++)
-        self->ndistant += self->entries[i].kind == S_DISTANT;
+        self->ndistant += self->entries[i].kind == PF_ENTRY_DISTANT;
     if (self->ndistant == 0) {
         self->dcdf = self->cdf;
         return 0;
@@ -247,7 +198,7 @@ static int s_direct_table(pf_lights_t *self)
     for (size_t i = 0; i < self->n; i++) {
         double p = self->cdf[i + 1] - self->cdf[i];
         self->dcdf[i] = acc;
-        if (self->entries[i].kind == S_DISTANT) {
+        if (self->entries[i].kind == PF_ENTRY_DISTANT) {
             self->distant[k++] = (uint32_t)i;
             continue;
         }
@@ -263,26 +214,28 @@ static int s_direct_table(pf_lights_t *self)
 }
 
 /* pbrt's LightBounds of a bounded entry (area, point, spot): an area
- * triangle one-sided along its normal, light leaving over pi/2 about it; a
+ * triangle along its normal, light leaving over pi/2 about it, on both
+ * sides when two-sided (pbrt's twoSided: |cos| to the normal); a
  * point light in every direction; a spot in its inner cone, spreading to the
  * outer (power 4 pi I for both, as pbrt). Zero power for an unbounded one. */
 static pf_light_bounds_t s_entry_bounds(const pf_lights_t *self, const pf_scene_t *scene, size_t i)
 {
-    const s_entry *e = &self->entries[i];
+    const pf_light_entry_t *e = &self->entries[i];
     pf_light_bounds_t b = { .phi = 0.0f, .w = pf_v3(0, 0, 1), .cos_theta_o = -1.0f, .cos_theta_e = 0.0f };
     double p = self->power * (self->cdf[i + 1] - self->cdf[i]);
-    if (e->kind == S_AREA) {
+    if (e->kind == PF_ENTRY_AREA) {
         const pf_emit_tri_t *t = &self->tris[i]; /* built before (s_build_tables) */
         b.w = t->n;
         b.lo = pf_vmin(t->p0, pf_vmin(t->p1, t->p2));
         b.hi = pf_vmax(t->p0, pf_vmax(t->p1, t->p2));
         b.cos_theta_o = 1.0f;
         b.phi = (float)p;
+        b.two_sided = (int)t->twosided;
         return b;
     }
-    if (e->kind == S_SPHERE)
+    if (e->kind == PF_ENTRY_SPHERE)
         return pf_sphere_light_bounds(&scene->spheres[e->light], (float)p);
-    if (e->kind != S_POINT)
+    if (e->kind != PF_ENTRY_POINT)
         return b;
     const pf_light_t *l = &scene->lights[e->light];
     b.lo = b.hi = l->pos;
@@ -302,12 +255,12 @@ static size_t s_light_groups(const pf_lights_t *self, const pf_scene_t *scene)
 {
     size_t groups = 0;
     for (size_t i = 0; i < self->n; i++) {
-        const s_entry *e = &self->entries[i], *p = i ? &self->entries[i - 1] : NULL;
-        if (e->kind == S_POINT || e->kind == S_SPHERE) {
+        const pf_light_entry_t *e = &self->entries[i], *p = i ? &self->entries[i - 1] : NULL;
+        if (e->kind == PF_ENTRY_POINT || e->kind == PF_ENTRY_SPHERE) {
             groups++;
             continue;
         }
-        if (e->kind != S_AREA)
+        if (e->kind != PF_ENTRY_AREA)
             continue;
         pf_vec3 le = scene->mats[scene->meshes[e->mesh].mat[e->tri]].le;
         if (!p || p->mesh != e->mesh) {
@@ -315,7 +268,8 @@ static size_t s_light_groups(const pf_lights_t *self, const pf_scene_t *scene)
             continue;
         }
         pf_vec3 lp = scene->mats[scene->meshes[p->mesh].mat[p->tri]].le;
-        groups += le.x != lp.x || le.y != lp.y || le.z != lp.z;
+        groups += le.x != lp.x || le.y != lp.y || le.z != lp.z ||
+                  self->tris[i].twosided != self->tris[i - 1].twosided;
     }
     return groups;
 }
@@ -325,9 +279,9 @@ static size_t s_light_groups(const pf_lights_t *self, const pf_scene_t *scene)
  * others). One expression for the sampler and the pdfs, so they agree. */
 static float s_mix_pmf(const pf_lights_t *self, size_t e, float p_bvh)
 {
-    s_kind k = self->entries[e].kind;
+    pf_light_kind k = self->entries[e].kind;
     float power = (float)(self->dcdf[e + 1] - self->dcdf[e]);
-    if (k == S_DISTANT)
+    if (k == PF_ENTRY_DISTANT)
         return 0.0f; /* taken apart (pf_lights_distant) */
     float own = s_bounded(k) ? (1.0f - self->p_inf) * p_bvh
                              : self->p_inf * (float)((self->dcdf[e + 1] - self->dcdf[e]) / self->pu);
@@ -347,9 +301,9 @@ static int s_build_pick(pf_lights_t *self, const pf_scene_t *scene)
     size_t nb = 0, ninf = 0, nunb = 0;
     double pu = 0.0;
     for (size_t i = 0; i < self->n; i++) {
-        s_kind k = self->entries[i].kind;
+        pf_light_kind k = self->entries[i].kind;
         nb += s_bounded(k);
-        if (k == S_INFINITE || k == S_ENVMAP) {
+        if (k == PF_ENTRY_INFINITE || k == PF_ENTRY_ENVMAP) {
             nunb++;
             ninf = 1;
             pu += self->dcdf[i + 1] - self->dcdf[i];
@@ -370,11 +324,11 @@ static int s_build_pick(pf_lights_t *self, const pf_scene_t *scene)
     size_t k = 0, j = 0;
     double acc = 0.0;
     for (size_t i = 0; i < self->n; i++) {
-        s_kind kind = self->entries[i].kind;
+        pf_light_kind kind = self->entries[i].kind;
         if (s_bounded(kind)) {
             b[k] = s_entry_bounds(self, scene, i);
             id[k++] = (uint32_t)i;
-        } else if (kind != S_DISTANT) {
+        } else if (kind != PF_ENTRY_DISTANT) {
             self->unb[j] = (uint32_t)i;
             self->unb_cdf[j++] = acc;
             acc += self->dcdf[i + 1] - self->dcdf[i];
@@ -392,11 +346,11 @@ static int s_build_pick(pf_lights_t *self, const pf_scene_t *scene)
     self->pu = pu;
     /* the sky entries' probabilities for direct light (pf_lights_sky_pdf) */
     for (j = 0; j < self->nunb; j++) {
-        const s_entry *e = &self->entries[self->unb[j]];
+        const pf_light_entry_t *e = &self->entries[self->unb[j]];
         float pmf = s_mix_pmf(self, self->unb[j], 0.0f);
-        if (e->kind == S_INFINITE)
+        if (e->kind == PF_ENTRY_INFINITE)
             self->sky_pmf = pmf;
-        else if (e->kind == S_ENVMAP)
+        else if (e->kind == PF_ENTRY_ENVMAP)
             self->env[e->light].pmf = pmf;
     }
     return 0;
@@ -441,9 +395,12 @@ pf_lights_t *pf_lights_build(const pf_scene_t *scene)
             float area = 0.5f * pf_len(pf_cross(pf_sub(mesh->pos[v[1]], mesh->pos[v[0]]),
                                                 pf_sub(mesh->pos[v[2]], mesh->pos[v[0]])));
             double p = PF_PI * (double)area * pf_luminance(le);
+            if (scene->mats[mesh->mat[t]].twosided)
+                p *= 2.0; /* both sides */
             if (!(p > 0.0))
                 continue;
-            self->entries[self->n] = (s_entry){ .kind = S_AREA, .mesh = (uint32_t)m, .tri = (uint32_t)t, .area = area };
+            self->entries[self->n] =
+                (pf_light_entry_t){ .kind = PF_ENTRY_AREA, .mesh = (uint32_t)m, .tri = (uint32_t)t, .area = area };
             self->cdf[self->n++] = acc;
             acc += p;
         }
@@ -456,7 +413,7 @@ pf_lights_t *pf_lights_build(const pf_scene_t *scene)
         if (!(p > 0.0))
             continue;
         self->sphere_entry[i] = (uint32_t)self->n + 1;
-        self->entries[self->n] = (s_entry){ .kind = S_SPHERE, .light = (uint32_t)i, .area = area };
+        self->entries[self->n] = (pf_light_entry_t){ .kind = PF_ENTRY_SPHERE, .light = (uint32_t)i, .area = area };
         self->cdf[self->n++] = acc;
         acc += p;
     }
@@ -474,8 +431,9 @@ pf_lights_t *pf_lights_build(const pf_scene_t *scene)
             self->sky = pf_add(self->sky, li->intensity);
             continue;
         }
-        s_kind kind = li->type == PF_LIGHT_DISTANT ? S_DISTANT : S_POINT;
-        self->entries[self->n] = (s_entry){ .kind = kind, .light = (uint32_t)l, .axis = li->dir, .cos_max = -1.0f };
+        pf_light_kind kind = li->type == PF_LIGHT_DISTANT ? PF_ENTRY_DISTANT : PF_ENTRY_POINT;
+        self->entries[self->n] =
+            (pf_light_entry_t){ .kind = kind, .light = (uint32_t)l, .axis = li->dir, .cos_max = -1.0f };
         s_aim_at_scene(self, scene, &self->entries[self->n]);
         self->cdf[self->n++] = acc;
         acc += p;
@@ -483,7 +441,7 @@ pf_lights_t *pf_lights_build(const pf_scene_t *scene)
     pf_light_t sky = { .type = PF_LIGHT_INFINITE, .intensity = self->sky };
     double psky = s_light_power(&sky, self->radius);
     if (psky > 0.0) {
-        self->entries[self->n] = (s_entry){ .kind = S_INFINITE, .cos_max = -1.0f };
+        self->entries[self->n] = (pf_light_entry_t){ .kind = PF_ENTRY_INFINITE, .cos_max = -1.0f };
         self->cdf[self->n++] = acc;
         acc += psky;
     } else {
@@ -503,9 +461,9 @@ pf_lights_t *pf_lights_build(const pf_scene_t *scene)
     }
     for (size_t i = 0; i < self->n; i++) {
         float pmf = (float)(self->dcdf[i + 1] - self->dcdf[i]);
-        if (self->entries[i].kind == S_ENVMAP)
+        if (self->entries[i].kind == PF_ENTRY_ENVMAP)
             self->env[self->entries[i].light].pmf = pmf;
-        else if (self->entries[i].kind == S_INFINITE)
+        else if (self->entries[i].kind == PF_ENTRY_INFINITE)
             self->sky_pmf = pmf;
     }
     if (s_build_pick(self, scene))
@@ -569,10 +527,11 @@ pf_vec3 pf_lights_sky_mis(const pf_lights_t *self, pf_vec3 n, pf_vec3 d, float *
  * cosine about n when n is not zero; a map: its distribution), weighed as a
  * sample of the mixture of every sky entry (see the top). 0 when it carries
  * nothing. */
-static int s_sky_mixture(const pf_lights_t *self, const s_entry *e, pf_vec3 n, const float u[3], pf_light_conn_t *out)
+static int s_sky_mixture(const pf_lights_t *self, const pf_light_entry_t *e, pf_vec3 n, const float u[3],
+                         pf_light_conn_t *out)
 {
     pf_vec3 wi;
-    if (e->kind == S_ENVMAP)
+    if (e->kind == PF_ENTRY_ENVMAP)
         wi = pf_envlight_sample(&self->env[e->light], u[1], u[2]);
     else if (pf_is_black(n))
         wi = pf_sample_sphere(u[1], u[2]);
@@ -590,9 +549,7 @@ static int s_sky_mixture(const pf_lights_t *self, const s_entry *e, pf_vec3 n, c
 }
 size_t pf_lights_count(const pf_lights_t *self) { return self->n; }
 
-/* Picks entry i with cdf[i] <= u < cdf[i+1] (cdf: self->cdf or self->dcdf);
- * *pmf its probability. */
-static size_t s_pick(const pf_lights_t *self, const double *cdf, float u, double *pmf)
+size_t pf_lights_pick(const pf_lights_t *self, const double *cdf, float u, double *pmf)
 {
     const pf_cdf_guide_t *g = cdf == self->cdf ? &self->cdf_guide : &self->dcdf_guide;
     size_t lo = pf_cdf_guide_pick(g, cdf, self->n, u);
@@ -606,12 +563,12 @@ static size_t s_pick(const pf_lights_t *self, const double *cdf, float u, double
 static size_t s_pick_direct(const pf_lights_t *self, pf_vec3 x, pf_vec3 n, float u, double *pmf)
 {
     if (!self->bvh)
-        return s_pick(self, self->dcdf, u, pmf);
+        return pf_lights_pick(self, self->dcdf, u, pmf);
     size_t e;
     double pp;
     if (u < S_DEFENSIVE) { /* by power */
-        e = s_pick(self, self->dcdf, fminf(u / S_DEFENSIVE, 0x1.fffffep-1f), &pp);
-        s_kind k = self->entries[e].kind;
+        e = pf_lights_pick(self, self->dcdf, fminf(u / S_DEFENSIVE, 0x1.fffffep-1f), &pp);
+        pf_light_kind k = self->entries[e].kind;
         float pb = s_bounded(k) ? pf_lightbvh_pmf(self->bvh, x, n, (uint32_t)e) : 0.0f;
         *pmf = (double)s_mix_pmf(self, e, pb);
         return e;
@@ -639,20 +596,6 @@ static size_t s_pick_direct(const pf_lights_t *self, pf_vec3 x, pf_vec3 n, float
     return id;
 }
 
-/* A uniform point on a triangle (its record) or sphere entry, its unit
- * face normal and error bound; returns its Le. */
-static pf_vec3 s_surface_point(const pf_lights_t *self, const pf_scene_t *scene, const s_entry *e, const float *u,
-                               pf_vec3 *p, pf_vec3 *n, pf_vec3 *perr)
-{
-    if (e->kind == S_AREA) {
-        const pf_emit_tri_t *t = &self->tris[e - self->entries];
-        *p = pf_emit_tri_point(t, u[0], u[1], perr);
-        *n = t->n;
-        return t->le;
-    }
-    pf_sphere_light_point(&scene->spheres[e->light], u[0], u[1], p, n, perr);
-    return scene->mats[scene->spheres[e->light].mat].le;
-}
 
 int pf_lights_sample_direct(const pf_lights_t *self, const pf_scene_t *scene, pf_vec3 x, const float u[3],
                             pf_light_conn_t *out)
@@ -679,6 +622,8 @@ int pf_lights_sample_direct_at(const pf_lights_t *self, const pf_scene_t *scene,
         float dist = sqrtf(d2);
         pf_vec3 wi = pf_scale(d, 1.0f / dist);
         float cos_l = -pf_dot(wi, n);
+        if (t->twosided)
+            cos_l = fabsf(cos_l); /* x sees its back, which emits too */
         if (cos_l <= 0.0f)
             return 0; /* one-sided: x is behind the emitter */
         pf_vec3 le = t->le;
@@ -689,8 +634,8 @@ int pf_lights_sample_direct_at(const pf_lights_t *self, const pf_scene_t *scene,
         out->pdf = pdf_area * d2 / cos_l;
         return 1;
     }
-    const s_entry *e = &self->entries[pick];
-    if (e->kind == S_SPHERE) { /* uniform in its cone: Le / (pmf pdf) */
+    const pf_light_entry_t *e = &self->entries[pick];
+    if (e->kind == PF_ENTRY_SPHERE) { /* uniform in its cone: Le / (pmf pdf) */
         const pf_sphere_t *sp = &scene->spheres[e->light];
         if (!pf_sphere_light_sample(sp, x, u[1], u[2], &out->wi, &out->dist, &out->pdf))
             return 0; /* x inside: it sees the back */
@@ -698,9 +643,9 @@ int pf_lights_sample_direct_at(const pf_lights_t *self, const pf_scene_t *scene,
         out->weight = pf_scale(scene->mats[sp->mat].le, 1.0f / out->pdf);
         return 1;
     }
-    if (e->kind == S_ENVMAP || (e->kind == S_INFINITE && self->nenv))
+    if (e->kind == PF_ENTRY_ENVMAP || (e->kind == PF_ENTRY_INFINITE && self->nenv))
         return s_sky_mixture(self, e, n, u, out);
-    if (e->kind == S_INFINITE) {
+    if (e->kind == PF_ENTRY_INFINITE) {
         out->dist = INFINITY;
         if (pf_is_black(n)) { /* uniform over the sphere: L / (pdf pmf), pdf = 1 / (4 pi) */
             out->wi = pf_sample_sphere(u[1], u[2]);
@@ -768,7 +713,7 @@ float pf_lights_pdf_at(const pf_lights_t *self, const pf_scene_t *scene, pf_vec3
     size_t lo = 0, hi = self->narea;
     while (lo < hi) { /* the first area entry >= (geom, prim) */
         size_t mid = (lo + hi) / 2;
-        const s_entry *e = &self->entries[mid];
+        const pf_light_entry_t *e = &self->entries[mid];
         if (e->mesh < geom || (e->mesh == geom && e->tri < prim))
             lo = mid + 1;
         else
@@ -776,198 +721,16 @@ float pf_lights_pdf_at(const pf_lights_t *self, const pf_scene_t *scene, pf_vec3
     }
     if (lo == self->narea || self->entries[lo].mesh != geom || self->entries[lo].tri != prim)
         return 0.0f;
-    const s_entry *e = &self->entries[lo];
-    pf_vec3 n = self->tris[lo].n; /* the normal exactly as s_surface_point gives it */
+    const pf_light_entry_t *e = &self->entries[lo];
+    pf_vec3 n = self->tris[lo].n; /* the normal exactly as pf_lights_surface_point gives it */
     pf_vec3 d = pf_sub(p, x);
     float d2 = pf_len2(d);
     if (!(d2 > 0.0f))
         return 0.0f;
     float cos_l = -pf_dot(d, n) / sqrtf(d2);
+    if (self->tris[lo].twosided)
+        cos_l = fabsf(cos_l); /* as pf_lights_sample_direct_at */
     if (cos_l <= 0.0f)
         return 0.0f;
     return s_direct_pmf(self, x, nx, lo) / e->area * d2 / cos_l;
-}
-
-/* The plane a distant light's photons start on: perpendicular to its
- * direction dir, touching the scene's bounding sphere on the light's side. */
-static pf_vec3 s_plane_origin(const pf_lights_t *self, pf_vec3 dir)
-{
-    return pf_madd(self->center, dir, -self->radius);
-}
-
-/* A uniform point on the disc of radius r on that plane whose centre is c's
- * projection onto it. */
-static pf_vec3 s_disc_point(const pf_lights_t *self, pf_vec3 dir, pf_vec3 c, float r, float u1, float u2)
-{
-    pf_vec3 o = s_plane_origin(self, dir), t, b;
-    pf_vec3 cp = pf_madd(c, dir, -pf_dot(pf_sub(c, o), dir));
-    pf_basis(dir, &t, &b);
-    float rho = r * sqrtf(u1), phi = 2.0f * PF_PI * u2;
-    return pf_add(cp, pf_add(pf_scale(t, rho * cosf(phi)), pf_scale(b, rho * sinf(phi))));
-}
-
-int pf_lights_emit(const pf_lights_t *self, const pf_scene_t *scene, const float u[5], pf_emission_t *out)
-{
-    if (self->n == 0)
-        return 0;
-    double pmf;
-    const s_entry *e = &self->entries[s_pick(self, self->cdf, u[0], &pmf)];
-    if (e->kind == S_AREA || e->kind == S_SPHERE) {
-        pf_vec3 p, n, perr, le = s_surface_point(self, scene, e, &u[1], &p, &n, &perr);
-        pf_vec3 local = pf_sample_cosine(u[3], u[4]);
-        /* Le cos / (pdf_area pdf_dir) = Le cos / ((pmf / A) (cos / pi)) = Le A pi / pmf. */
-        out->ray = (pf_ray_t){ p, pf_to_world(local, n) };
-        out->flux = pf_scale(le, PF_PI * e->area / (float)pmf);
-        out->perr = perr;
-        out->n = n;
-        return 1;
-    }
-    out->perr = pf_v3s(0.0f);
-    out->n = pf_v3s(0.0f);
-    if (e->kind == S_ENVMAP) {
-        /* a direction towards the sky from the map's distribution, the photon
-         * travelling against it: L pi R^2 / (pdf_dir pmf) */
-        const pf_envlight_t *env = &self->env[e->light];
-        pf_vec3 d = pf_envlight_sample(env, u[1], u[2]);
-        float pdf = pf_envlight_pdf(env, d);
-        if (!(pdf > 0.0f))
-            return 0;
-        pf_vec3 dir = pf_neg(d);
-        out->ray = (pf_ray_t){ s_disc_point(self, dir, self->center, self->radius, u[3], u[4]), dir };
-        out->flux = pf_scale(pf_envlight_le(env, d), PF_PI * self->radius * self->radius / (pdf * (float)pmf));
-        return 1;
-    }
-    const pf_light_t *l = e->kind == S_INFINITE ? NULL : &scene->lights[e->light]; /* the sky: self->sky */
-    if (e->kind == S_DISTANT) {
-        /* E / (pdf_area pmf), pdf_area = 1 / (pi R^2) over the disc. */
-        out->ray = (pf_ray_t){ s_disc_point(self, l->dir, self->center, self->radius, u[3], u[4]), l->dir };
-        out->flux = pf_scale(l->intensity, PF_PI * self->radius * self->radius / (float)pmf);
-        return 1;
-    }
-    if (e->kind == S_INFINITE) {
-        /* a direction uniform over the sphere, then as a distant light along it:
-         * L pi R^2 / (pdf_dir pmf), pdf_dir = 1 / (4 pi) */
-        pf_vec3 d = pf_sample_sphere(u[1], u[2]);
-        out->ray = (pf_ray_t){ s_disc_point(self, d, self->center, self->radius, u[3], u[4]), d };
-        out->flux = pf_scale(self->sky, 4.0f * PF_PI * PF_PI * self->radius * self->radius / (float)pmf);
-        return 1;
-    }
-    if (l->type == PF_LIGHT_POINT && e->cos_max > -1.0f) {
-        /* I / (pdf_dir pmf), pdf_dir = 1 / solid angle of the cone. */
-        out->ray = (pf_ray_t){ l->pos, pf_to_world(pf_sample_cone(u[3], u[4], e->cos_max), e->axis) };
-        out->flux = pf_scale(l->intensity, 2.0f * PF_PI * (1.0f - e->cos_max) / (float)pmf);
-        return 1;
-    }
-    if (l->type == PF_LIGHT_POINT) {
-        out->ray = (pf_ray_t){ l->pos, pf_sample_sphere(u[3], u[4]) };
-        out->flux = pf_scale(l->intensity, 4.0f * PF_PI / (float)pmf);
-        return 1;
-    }
-    pf_vec3 local = pf_sample_cone(u[3], u[4], l->cos_outer);
-    pf_vec3 w = pf_to_world(local, l->dir);
-    float pdf = 1.0f / (2.0f * PF_PI * (1.0f - l->cos_outer));
-    out->ray = (pf_ray_t){ l->pos, w };
-    out->flux = pf_scale(l->intensity, pf_spot_falloff(l, local.z) / (pdf * (float)pmf));
-    return 1;
-}
-
-/* A caustic photon of a distant light: a point uniform in the disc that a
- * target chosen uniformly casts on the emission plane (every ray along dir
- * that meets a target crosses its disc), the flux divided by the mixture pdf
- * of all discs holding the point. */
-static int s_distant_targeted(const pf_lights_t *self, pf_vec3 dir, pf_vec3 irradiance, double pmf,
-                              const pf_target_t *targets, size_t ntargets, const float u[6], pf_emission_t *out)
-{
-    size_t ti = (size_t)(u[3] * (float)ntargets);
-    if (ti >= ntargets)
-        ti = ntargets - 1;
-    pf_vec3 p = s_disc_point(self, dir, targets[ti].center, targets[ti].radius, u[4], u[5]);
-    double pdf = 0.0;
-    for (size_t k = 0; k < ntargets; k++) {
-        pf_vec3 d = pf_sub(p, targets[k].center);
-        float r = targets[k].radius;
-        /* the squared distance to the target's centre line, by the disc's own test */
-        float dperp2 = pf_len2(pf_madd(d, dir, -pf_dot(d, dir)));
-        if (k == ti || dperp2 <= r * r)
-            pdf += 1.0 / (PF_PI * (double)r * (double)r);
-    }
-    pdf /= (double)ntargets;
-    if (!(pdf > 0.0) || !isfinite(pdf))
-        return 0;
-    out->ray = (pf_ray_t){ p, dir };
-    out->flux = pf_scale(irradiance, (float)(1.0 / (pdf * pmf)));
-    out->perr = pf_v3s(0.0f);
-    out->n = pf_v3s(0.0f);
-    return 1;
-}
-
-int pf_lights_emit_targeted(const pf_lights_t *self, const pf_scene_t *scene, const pf_target_t *targets,
-                            size_t ntargets, const float u[6], pf_emission_t *out)
-{
-    if (self->n == 0 || ntargets == 0)
-        return 0;
-    double pmf;
-    const s_entry *e = &self->entries[s_pick(self, self->cdf, u[0], &pmf)];
-    if (e->kind == S_DISTANT) {
-        const pf_light_t *ld = &scene->lights[e->light];
-        return s_distant_targeted(self, ld->dir, ld->intensity, pmf, targets, ntargets, u, out);
-    }
-    if (e->kind == S_ENVMAP) { /* a direction from the map's distribution: irradiance L / pdf along it */
-        const pf_envlight_t *env = &self->env[e->light];
-        pf_vec3 d = pf_envlight_sample(env, u[1], u[2]);
-        float pdf = pf_envlight_pdf(env, d);
-        if (!(pdf > 0.0f))
-            return 0;
-        return s_distant_targeted(self, pf_neg(d), pf_scale(pf_envlight_le(env, d), 1.0f / pdf), pmf, targets,
-                                  ntargets, u, out);
-    }
-    if (e->kind == S_INFINITE) /* a direction uniform over the sphere, pdf 1 / (4 pi) */
-        return s_distant_targeted(self, pf_sample_sphere(u[1], u[2]), pf_scale(self->sky, 4.0f * PF_PI), pmf,
-                                  targets, ntargets, u, out);
-    pf_vec3 p, n = pf_v3s(0.0f), perr = pf_v3s(0.0f), le = pf_v3s(0.0f);
-    const pf_light_t *l = NULL;
-    int surface = e->kind == S_AREA || e->kind == S_SPHERE;
-    if (surface) {
-        le = s_surface_point(self, scene, e, &u[1], &p, &n, &perr);
-    } else {
-        l = &scene->lights[e->light];
-        p = l->pos;
-    }
-    size_t ti = (size_t)(u[3] * (float)ntargets);
-    if (ti >= ntargets)
-        ti = ntargets - 1;
-    pf_vec3 axis;
-    float cos_max, solid;
-    pf_target_cone(p, &targets[ti], &axis, &cos_max, &solid);
-    pf_vec3 w = cos_max <= -1.0f ? pf_sample_sphere(u[4], u[5])
-                                 : pf_to_world(pf_sample_cone(u[4], u[5], cos_max), axis);
-    /* Mixture pdf over every target whose cone holds w. */
-    double pdf = 0.0;
-    for (size_t k = 0; k < ntargets; k++) {
-        pf_vec3 ak;
-        float ck, sk;
-        pf_target_cone(p, &targets[k], &ak, &ck, &sk);
-        if (ck <= -1.0f || pf_dot(w, ak) >= ck)
-            pdf += 1.0 / (double)sk;
-    }
-    pdf /= (double)ntargets;
-    if (!(pdf > 0.0))
-        return 0;
-    pf_vec3 radiant; /* emitted radiance x cos (area) or intensity (point, spot) towards w */
-    if (surface) {
-        float cos_l = pf_dot(w, n);
-        if (cos_l <= 0.0f)
-            return 0;
-        radiant = pf_scale(le, cos_l * e->area); /* divided by pdf_area = 1 / area */
-    } else {
-        float f = l->type == PF_LIGHT_SPOT ? pf_spot_falloff(l, pf_dot(w, l->dir)) : 1.0f;
-        if (f <= 0.0f)
-            return 0;
-        radiant = pf_scale(l->intensity, f);
-    }
-    out->ray = (pf_ray_t){ p, w };
-    out->flux = pf_scale(radiant, (float)(1.0 / (pdf * pmf)));
-    out->perr = perr;
-    out->n = n;
-    return 1;
 }

@@ -1,5 +1,6 @@
 /* light.h: the scene's emitters in one power-weighted table: every emissive
- * triangle (one-sided area light along its face normal), every emissive
+ * triangle (an area light along its face normal, or on both sides when its
+ * material is two-sided), every emissive
  * analytic sphere (emitting outward, sampled by its cone: spherelight.h), point, spot,
  * distant and infinite lights (a constant sky, or an image-based one:
  * envlight.h). Used for direct-light sampling (worker) and photon emission

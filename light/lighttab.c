@@ -107,5 +107,6 @@ pf_emit_tri_t pf_emit_tri_make(const pf_scene_t *scene, uint32_t m, uint32_t t, 
         r.n = pf_face_forward(r.n, pf_add(pf_add(mesh->nrm[v[0]], mesh->nrm[v[1]]), mesh->nrm[v[2]]));
     r.le = scene->mats[mesh->mat[t]].le;
     r.area = area;
+    r.twosided = scene->mats[mesh->mat[t]].twosided != 0;
     return r;
 }

@@ -5,9 +5,9 @@
  *   of the whole table finds, from a bisection of the few entries that one
  *   bucket of [0, 1) spans.
  * - The emissive triangles' records (pf_emit_tri): vertices, oriented face
- *   normal, radiance and area in one cache line, so that a light sample
- *   reads one line instead of the mesh's index, position, normal and
- *   material arrays. */
+ *   normal, radiance, area and sidedness in about one cache line, so that a
+ *   light sample reads that instead of the mesh's index, position, normal
+ *   and material arrays. */
 #ifndef PF_LIGHT_LIGHTTAB_H
 #define PF_LIGHT_LIGHTTAB_H
 
@@ -59,10 +59,12 @@ unsigned pf_guide_bits(size_t n, size_t per);
 
 /* An emissive triangle as light.c samples it: p0, p1, p2 its vertices, n
  * its unit face normal oriented by the vertex normals (as accel.c does),
- * le the material's radiance, area as the light table computed it. */
+ * le the material's radiance, area as the light table computed it,
+ * twosided the material's (le leaves the back too). */
 typedef struct pf_emit_tri {
     pf_vec3 p0, p1, p2, n, le;
     float area;
+    uint32_t twosided;
 } pf_emit_tri_t;
 
 /* The record of triangle t of mesh m with the given area. */

@@ -235,7 +235,7 @@ static int s_coated(s_ctx_t *c, const cJSON *m, pf_material_t *mat)
 
 static int s_material(s_ctx_t *c, const cJSON *m)
 {
-    static const char *const keys[] = { "name", "type", "kd", "ks", "ns", "kt", "ior", "emission",
+    static const char *const keys[] = { "name", "type", "kd", "ks", "ns", "kt", "ior", "emission", "twosided",
                                         "eta", "k", "reflectance", "roughness", "thickness", "materials", "amount",
                                         "normal_map", "bump", "bump_scale", NULL };
     const char *what = "material";
@@ -301,8 +301,8 @@ static int s_material(s_ctx_t *c, const cJSON *m)
     }
     for (const cJSON *k = m->child; k; k = k->next) {
         if (strcmp(k->string, "name") == 0 || strcmp(k->string, "type") == 0 || strcmp(k->string, "comment") == 0 ||
-            pf_json_is_map_key(k->string))
-            continue;
+            strcmp(k->string, "twosided") == 0 || pf_json_is_map_key(k->string))
+            continue; /* twosided: with emission, on every type (scene_json_mat.c) */
         int ok = 0;
         for (const char *const *p = valid; *p && !ok; p++)
             ok = strcmp(k->string, *p) == 0;
@@ -539,7 +539,7 @@ static int s_mat_equal(const pf_material_t *a, const pf_material_t *b)
 {
     return strcmp(a->name, b->name) == 0 && a->type == b->type && s_vec_equal(a->kd, b->kd) &&
            s_vec_equal(a->ks, b->ks) && a->ns == b->ns && s_vec_equal(a->kt, b->kt) && a->ior == b->ior &&
-           s_vec_equal(a->le, b->le) && s_vec_equal(a->eta, b->eta) && s_vec_equal(a->k, b->k) && a->alpha == b->alpha;
+           s_vec_equal(a->le, b->le) && a->twosided == b->twosided && s_vec_equal(a->eta, b->eta) && s_vec_equal(a->k, b->k) && a->alpha == b->alpha;
 }
 
 /* The MTL loader replaces a scene material of the same name in place, which

@@ -6,7 +6,9 @@
  *   { "type": "mix", "materials": [ "a", "b" ], "amount": p in [0, 1]
  *     (default 0.5), "emission" } - at each hit "b" with probability p,
  *     else "a" (pbrt-v4's mix); both named materials defined earlier in
- *     this file (so mixes cannot form cycles).
+ *     this file (so mixes cannot form cycles);
+ *   on every kind, "twosided": true with an "emission": the emission leaves
+ *     both sides of its triangles (pbrt-v4's two-sided area light).
  * Called by scene_json.c's material reader, on the loading thread. */
 #include <string.h>
 
@@ -70,8 +72,25 @@ static int s_mix(s_ctx_t *c, const cJSON *m, pf_material_t *mat)
     return PF_OK;
 }
 
+/* "twosided": a boolean, true only beside an emission. */
+static int s_twosided(s_ctx_t *c, const cJSON *m, pf_material_t *mat)
+{
+    const cJSON *v = pf_json_get(m, "twosided");
+    if (!v)
+        return PF_OK;
+    if (!cJSON_IsBool(v))
+        return S_FAIL_AT(c, v, "'twosided' in material must be true or false, not %s", pf_json_type_name(v));
+    mat->twosided = cJSON_IsTrue(v) ? 1u : 0u;
+    if (mat->twosided && pf_is_black(mat->le))
+        return S_FAIL_AT(c, v, "material '%s': 'twosided' needs an 'emission' (it says which sides emit)", mat->name);
+    return PF_OK;
+}
+
 int pf_json_material_more(s_ctx_t *c, const cJSON *m, pf_material_t *mat)
 {
+    int rc = s_twosided(c, m, mat);
+    if (rc)
+        return rc;
     if (mat->type == PF_MAT_MIX)
         return s_mix(c, m, mat);
     if (mat->type == PF_MAT_DIFFUSE_TRANSMISSION)

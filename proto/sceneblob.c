@@ -9,13 +9,14 @@
  *   u8 has_camera, vec3 pos, vec3 look_at, vec3 up, f32 vfov_deg,
  *     u8 fov_shorter, u8 left_handed, f32 lens_radius, f32 focal_distance
  *   u32 nmats,    nmats x   { str name, u8 type, vec3 kd, vec3 ks, f32 ns, vec3 kt, f32 ior, vec3 le,
- *                             vec3 eta, vec3 k, f32 alpha, f32 thickness, u32 kd_tex, u32 mix0, u32 mix1,
+ *                             u8 twosided, vec3 eta, vec3 k, f32 alpha, f32 thickness, u32 kd_tex, u32 mix0, u32 mix1,
  *                             f32 amount, u32 amount_tex, u32 alpha_tex, u32 refl_tex,
  *                             u32 rough_tex, u32 rough_remap, u32 normal_tex, u32 bump_tex }
  *                             (version 4: eta, k, alpha; version 5: type 4, the thin dielectric; version
  *                             7: type 5, the coated diffuse, thickness and kd_tex; version 9: types 6 and
  *                             7, diffuse transmission and mix, and after kd_tex: u32 mix0, u32 mix1, f32
- *                             amount, u32 amount_tex, u32 alpha_tex, then refl_tex to bump_tex)
+ *                             amount, u32 amount_tex, u32 alpha_tex, then refl_tex to bump_tex; version 11:
+ *                             twosided)
  *   u32 nmeshes,  nmeshes x { str name, u64 nverts, u64 ntris, u8 has_normals, u8 has_uv, u32 alpha_tex,
  *                             nverts x vec3 pos, (has_normals) nverts x vec3 nrm,
  *                             (has_uv) nverts x 2 f32 uv, ntris x 3 u32 idx, ntris x u32 mat }
@@ -54,7 +55,7 @@
 #define S_WHERE "scene blob"
 
 /* The smallest encoded size of each repeated item, for the count checks. */
-#define S_MIN_MATERIAL (2 + 1 + 23 * 4 + 4 + 5 * 4)
+#define S_MIN_MATERIAL (2 + 1 + 23 * 4 + 4 + 5 * 4 + 1)
 #define S_MIN_MESH (2 + 8 + 8 + 2 + 4)
 #define S_MIN_TEXTURE (2 + 1 + 4 * 4 + 3 * 16 + 2 + 4 + 2 + 8)
 #define S_VERTEX 12
@@ -151,6 +152,7 @@ int pf_sceneblob_write(const pf_scene_t *scene, pf_buf_t *out)
         W(s_wr_vec3(out, m->kt));
         W(pf_wr_f32(out, m->ior));
         W(s_wr_vec3(out, m->le));
+        W(pf_wr_u8(out, m->twosided ? 1 : 0));
         W(s_wr_vec3(out, m->eta));
         W(s_wr_vec3(out, m->k));
         W(pf_wr_f32(out, m->alpha));
@@ -386,6 +388,7 @@ static void s_read_materials(s_in_t *in, pf_scene_t *scene)
         m.kt = s_vec3(in, what, "kt");
         m.ior = s_f32(in, what, "ior");
         m.le = s_vec3(in, what, "le");
+        m.twosided = s_u8(in, what, "twosided"); /* 0 or 1: checked by finalize */
         m.eta = s_vec3(in, what, "eta");
         m.k = s_vec3(in, what, "k");
         m.alpha = s_f32(in, what, "alpha");

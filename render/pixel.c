@@ -117,15 +117,15 @@ void pf_pixel_filter(const pf_settings_t *s, float *jx, float *jy)
     *jy = 0.5f + s_filter_inverse(*jy, b, t);
 }
 
-/* The emission a ray sees directly: an emitter's front or, when it
- * escapes, the sky. */
+/* The emission a ray sees directly: an emitter's front (a two-sided one's
+ * either side) or, when it escapes, the sky. */
 static pf_vec3 s_emission(const pf_render_ctx_t *c, pf_ray_t ray)
 {
     pf_hit_t h;
     if (!pf_accel_intersect(c->accel, &ray, INFINITY, &h))
         return pf_lights_sky(c->lights, ray.d);
     const pf_material_t *m = &c->scene->mats[h.mat];
-    return pf_dot(ray.d, h.ng) < 0.0f ? m->le : pf_v3s(0.0f);
+    return m->twosided || pf_dot(ray.d, h.ng) < 0.0f ? m->le : pf_v3s(0.0f);
 }
 
 static float s_lum(pf_vec3 v) { return 0.2126f * v.x + 0.7152f * v.y + 0.0722f * v.z; }

@@ -28,7 +28,8 @@
  *
  *   term        paths                  how
  *   emitted     L S* E                 Le added when a camera path (through
- *                                      S only) hits an emitter's front; at an
+ *                                      S only) hits an emitter's front (or a
+ *                                      two-sided one's either side); at an
  *                                      emitter's edge the emission seen
  *                                      directly has rays of its own (pixel.c)
  *   direct      L D S* E  (D = x)      light sampling at x; emitters are never
@@ -440,7 +441,7 @@ static pf_vec3 s_emitted(const s_state *st, const pf_hit_t *h, const pf_material
 {
     const pf_render_ctx_t *c = st->ctx;
     if (!(c->terms & (count_le == 2 ? PF_TERM_DIRECT : PF_TERM_EMITTED)) || pf_is_black(m->le) ||
-        pf_dot(d, h->ng) >= 0.0f)
+        (!m->twosided && pf_dot(d, h->ng) >= 0.0f))
         return pf_v3s(0.0f);
     if (count_le == 1)
         return m->le;

@@ -508,6 +508,8 @@ int pf_scene_finalize(pf_scene_t *self, pf_error_t *err)
         }
         if (m->type > PF_MAT_LAST)
             return pf_error_set(err, PF_EPARSE, file, 0, "material '%s': unknown type %d", m->name, (int)m->type);
+        if (m->twosided > 1)
+            return pf_error_set(err, PF_EPARSE, file, 0, "material '%s': twosided must be 0 or 1", m->name);
     }
     int trc = s_check_textures(self, err);
     if (trc)
@@ -543,6 +545,11 @@ int pf_scene_finalize(pf_scene_t *self, pf_error_t *err)
                                 s);
         if (sp->mat >= self->nmats)
             return pf_error_set(err, PF_EPARSE, file, 0, "sphere %zu: material index out of range", s);
+        if (self->mats[sp->mat].twosided && !pf_is_black(self->mats[sp->mat].le))
+            return pf_error_set(err, PF_EPARSE, file, 0,
+                                "sphere %zu: material '%s' emits on both sides (twosided), which an analytic sphere "
+                                "does not: it emits outward (give a mesh that material instead)",
+                                s, self->mats[sp->mat].name);
     }
     for (size_t l = 0; l < self->nlights; l++) {
         const pf_light_t *li = &self->lights[l];

@@ -14,7 +14,7 @@
 #include "scene/envmap.h"
 
 /* Material kinds (the last is PF_MAT_LAST). Every kind may also emit (le), one-sided along the face
- * normal given by the triangle's counter-clockwise winding. */
+ * normal given by the triangle's counter-clockwise winding, or on both sides (twosided). */
 typedef enum {
     PF_MAT_DIFFUSE = 0, /* Lambertian kd, plus an optional energy-conserving Phong lobe ks/ns */
     PF_MAT_MIRROR = 1,  /* perfect specular reflection with reflectance ks */
@@ -49,7 +49,9 @@ typedef struct pf_material {
     float alpha; /* GGX roughness alpha in [0, 1] (CONDUCTOR, COATED's coat); below 1e-3 a smooth mirror */
     float thickness; /* COATED: the coat's thickness, each crossing attenuates by exp(-thickness / |cos|)
                       * (pbrt-v4's layered BSDF, default 0.01 there); 0: lossless */
-    pf_vec3 le;  /* emitted radiance, one-sided */
+    pf_vec3 le;  /* emitted radiance, one-sided (the front) unless twosided */
+    uint32_t twosided; /* 1: le leaves both sides of a triangle alike (pbrt-v4's two-sided DiffuseAreaLight; a
+                        * quad so emits 2 pi A lum(le)); 0: the front only. Not on analytic spheres (finalize). */
     uint32_t kd_tex; /* 1 + index into pf_scene_t.texs: kd is that texture at the hit's uv; 0: kd as is */
     uint32_t mix[2];     /* MIX: the two materials' indices into pf_scene_t.mats */
     float amount;        /* MIX: the probability of mix[1] (pbrt's amount; <= 0: mix[0], >= 1: mix[1]) */

@@ -39,8 +39,9 @@
  * alpha < 1e-3 as perfectly smooth, and so warns nothing here.
  *
  * Lights: AreaLightSource "diffuse" gives the emission le = L * scale (or
- * the radiance that makes the shape emit "power" watts) to the shapes after
- * it, one-sided; LightSource "point" and "spot" become point and spot
+ * the radiance that makes the shape emit "power" watts, from both sides
+ * when two-sided) to the shapes after it, on their front or, with
+ * "twosided", on both sides (the material's twosided); LightSource "point" and "spot" become point and spot
  * lights (pbrt's spot falloff is the same smoothstep as light.c's, between
  * cos(coneangle) and cos(coneangle - conedelta)); "distant" becomes a
  * distant light shining from "from" towards "to" (the CTM's linear part
@@ -541,9 +542,6 @@ int pf_pbrt_area_light(pf_pbrt_t *c, const char *type, pf_pbrt_params_t *ps, pf_
         rc = pf_pbrt_warn(c, loc, "emission image (not rendered yet)",
                           "AreaLightSource: the image \"%s\" is not read; L (%g %g %g) is emitted", image, a.le.x,
                           a.le.y, a.le.z);
-    if (rc == PF_OK && a.twosided)
-        rc = pf_pbrt_warn(c, loc, "two-sided area light (emits on one side)",
-                          "AreaLightSource: \"twosided\" is not supported yet; the shapes emit on their front side only");
     if (rc == PF_OK)
         rc = pf_pbrt_check_unused(c, ps, "AreaLightSource");
     if (rc)
@@ -769,6 +767,7 @@ static int s_emit_pair(pf_pbrt_t *c, pf_pbrt_pair_t *p, size_t index)
         m = c->mats[r].m;
     }
     m.le = p->le;
+    m.twosided = p->area >= 0 && !pf_is_black(p->le) && c->areas[p->area].twosided;
     if (!pf_is_black(p->le)) {
         char base[PF_NAME_MAX], suffix[32];
         snprintf(base, sizeof base, "%s", m.name);

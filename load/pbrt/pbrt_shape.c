@@ -7,8 +7,8 @@
  *
  * Every shape is first built in object space, then placed (s_place): points
  * through the current transform (in double), normals through its inverse
- * transpose. The scene model emits light one-sided along the winding's
- * normal cross(p1 - p0, p2 - p0), turned towards the vertex normals when a
+ * transpose. The scene model emits light one-sided (unless two-sided) along
+ * the winding's normal cross(p1 - p0, p2 - p0), turned towards the vertex normals when a
  * mesh has them (light.c, accel.c); pbrt's area lights emit along the same
  * geometric normal, flipped by ReverseOrientation and by a transform that
  * swaps handedness, and likewise turned towards the vertex normals. So the
@@ -23,9 +23,11 @@
  * any object definition; an emissive one only when that transform also
  * keeps handedness: an analytic sphere emits outward (light/spherelight.h),
  * and pbrt's sphere flips its normal under ReverseOrientation and under a
- * mirroring transform, so both stay tessellated as before. Its Le is the
- * area light's, with "power" over pi 4 pi r^2 as s_place does over a mesh's
- * area. */
+ * mirroring transform, so both stay tessellated as before, and so does a
+ * sphere under a two-sided area light (its inside emits too, which the
+ * analytic sphere light does not). Its Le is the area light's, with "power"
+ * over pi 4 pi r^2 as s_place does over a mesh's area (pbrt-v4's k_e: pi
+ * times the area, times 2 when two-sided). */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -427,14 +429,13 @@ static int s_sphere(pf_pbrt_t *c, pf_pbrt_params_t *ps, int area, pf_pbrt_loc_t 
                                     phimax, S_PHI_STEPS, S_THETA_STEPS)))
         return rc;
     if (full && !c->gs.reverse && c->cur_object < 0 && s_similarity(c->gs.ctm, &s) &&
-        (area < 0 || pf_pbrt_m4_det3(c->gs.ctm) > 0.0)) {
+        (area < 0 || (pf_pbrt_m4_det3(c->gs.ctm) > 0.0 && !c->areas[area].twosided))) {
         if (c->shape_alpha &&
             (rc = pf_pbrt_warn(c, loc, "alpha on a sphere (opaque)", "sphere: \"alpha\" is not rendered on spheres")))
             return rc;
         pf_vec3 le = area < 0 ? pf_v3s(0.0f) : c->areas[area].le;
-        if (area >= 0 && c->areas[area].power > 0.0) /* A = 4 pi r^2; twosided emits one side (a warning) */
-            le = pf_scale(le, (float)(c->areas[area].power /
-                                      (M_PI * 4.0 * M_PI * rad * s * rad * s * (c->areas[area].twosided ? 2.0 : 1.0))));
+        if (area >= 0 && c->areas[area].power > 0.0) /* A = 4 pi r^2, one side (two-sided ones are meshes) */
+            le = pf_scale(le, (float)(c->areas[area].power / (M_PI * 4.0 * M_PI * rad * s * rad * s)));
         if (!pf_is_finite3(le))
             return pf_pbrt_error_line(c, PF_ERANGE, loc, "the emitted radiance is not finite");
         int pair = pf_pbrt_pair(c, area, le, loc);

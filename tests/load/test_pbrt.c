@@ -410,6 +410,22 @@ static void test_lights(void)
     }
     CHECK(s_warned(&rep, "light type distant") == 0); /* image infinite lights: tests/light/test_envmap.c */
     pf_scene_destroy(&s);
+    /* twosided: both sides emit, no warning; "power" is over both (pbrt-v4's
+     * k_e = 2 pi A), so its Le is half the one-sided light's. */
+    s = s_parse(S_HEAD "AttributeBegin\nAreaLightSource \"diffuse\" \"float power\" 10\n"
+                       "Shape \"trianglemesh\" \"point3 P\" [0 0 0  2 0 0  0 2 0]\nAttributeEnd\n"
+                       "AttributeBegin\nAreaLightSource \"diffuse\" \"float power\" 10 \"bool twosided\" true\n"
+                       "Shape \"trianglemesh\" \"point3 P\" [0 0 1  2 0 1  0 2 1]\nAttributeEnd\n",
+                0, &rep, &err);
+    CHECK(s && s->nmeshes == 2, "twosided: %s", err.msg);
+    if (s && s->nmeshes == 2) {
+        const pf_material_t *one = &s->mats[s->meshes[0].mat[0]], *two = &s->mats[s->meshes[1].mat[0]];
+        CHECK(one->twosided == 0 && two->twosided == 1, "twosided %u %u", one->twosided, two->twosided);
+        CHECK(fabs(pf_luminance(two->le) * 2.0 - pf_luminance(one->le)) < 1e-5 * pf_luminance(one->le),
+              "two-sided power over both sides: lum %g vs %g", pf_luminance(two->le), pf_luminance(one->le));
+        CHECK(rep.nwarnings == 0, "twosided warned (%zu warnings)", rep.nwarnings);
+    }
+    pf_scene_destroy(&s);
 }
 
 static void test_instances(void)
