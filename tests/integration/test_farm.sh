@@ -671,6 +671,10 @@ resume_test() {
         check "11: $n: the resumed image is bit-identical to the uninterrupted one" same "$T/${n}_2.pfm" "$ref"
         check "11: $n: the log says what was resumed" logged "$T/${n}_2.err" "resuming from .*$n.ckpt"
         check "11: $n: the checkpoint is removed at the end" test ! -e "$T/$n.ckpt"
+        local times
+        times=$(sed -nE 's/.*done in ([0-9.]+) s: photons [0-9.]+ s, render ([0-9.]+) s.*/\1 \2/p' "$T/${n}_2.err")
+        check "11: $n: the summary's render time is within its run ($times)" \
+            awk -v t="${times% *}" -v r="${times#* }" 'BEGIN { exit !(t != "" && r + 0 <= t + 0) }'
     fi
     unset -n sref
     stop "$wa" "$wb"
