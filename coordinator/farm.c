@@ -553,7 +553,7 @@ static int s_on_photons_done(pf_fm_t *f, pf_error_t *err)
     pf_xfer_set_blobs(f->xfer, &f->ph.scene_fb, &f->ph.maps_fb);
     f->job_ready = 1;
     f->pass_start = pf_now();
-    if (f->ph.pass == 0)
+    if (f->render_start == 0.0) /* this process's first pass: pass 0, or the first after a --resume */
         f->render_start = f->pass_start;
     pf_progress_begin(&f->bar, "render", f->o->show_progress);
     for (int i = 0; i < f->reg.nw; i++)

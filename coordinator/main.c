@@ -45,6 +45,7 @@ static void s_usage(FILE *f)
             "render options (defaults from the scene's \"render\" block, else shown here):\n"
             "  -o, --output FILE        PNG output, 8-bit sRGB (default: <scene name>.png)\n"
             "      --hdr FILE           also write linear float: OpenEXR if FILE ends in .exr, else PFM\n"
+            "      --hdr-half           an .exr --hdr file in 16-bit half floats (default 32-bit float)\n"
             "      --size WxH           image size (512x512)\n"
             "      --spp N              camera samples per pixel, stratified when a square (36)\n"
             "      --photons N          global photons emitted (400000)\n"
@@ -224,7 +225,7 @@ enum {
     OPT_HDR = 256, OPT_SIZE, OPT_SPP, OPT_PHOTONS, OPT_CPHOTONS, OPT_GATHER, OPT_GFILTER, OPT_LSAMPLES, OPT_GK, OPT_CK, OPT_CR,
     OPT_DEPTH, OPT_PDEPTH, OPT_THREADS, OPT_SEED, OPT_EXPOSURE, OPT_PFILTER, OPT_TERMS, OPT_WORKERS, OPT_BIND, OPT_MINW, OPT_CSECRET,
     OPT_CALLOW, OPT_TILE, OPT_HB, OPT_WATCHDOG, OPT_MAXWAIT, OPT_WEXE, OPT_TLIMIT, OPT_QUALITY, OPT_STRICT,
-    OPT_LEASE, OPT_STRIKES, OPT_FANOUT, OPT_VERIFY, OPT_PASSES, OPT_CKPT, OPT_RESUME, OPT_NOADAPT,
+    OPT_LEASE, OPT_STRIKES, OPT_FANOUT, OPT_VERIFY, OPT_PASSES, OPT_CKPT, OPT_RESUME, OPT_NOADAPT, OPT_HDRHALF,
 };
 
 /* SIGINT and SIGTERM. The farm's event loop and the progressive passes poll
@@ -285,7 +286,7 @@ static const struct option s_render_opts[] = {
     { "fanout", required_argument, 0, OPT_FANOUT },
     { "verify", required_argument, 0, OPT_VERIFY }, { "passes", required_argument, 0, OPT_PASSES },
     { "checkpoint", required_argument, 0, OPT_CKPT }, { "resume", no_argument, 0, OPT_RESUME },
-    { "no-adaptive", no_argument, 0, OPT_NOADAPT },
+    { "no-adaptive", no_argument, 0, OPT_NOADAPT }, { "hdr-half", no_argument, 0, OPT_HDRHALF },
     { 0, 0, 0, 0 },
 };
 
@@ -304,6 +305,7 @@ typedef struct s_cli_settings {
 typedef struct s_render_args {
     s_cli_settings o;
     const char *path, *out, *hdr;
+    int hdr_half; /* --hdr-half: an .exr --hdr file in 16-bit half floats */
     char outbuf[1024]; /* the default output name, when -o is not given */
     unsigned terms;
     pf_farm_opts_t farm;
@@ -392,6 +394,7 @@ static int s_parse_render_args(int argc, char **argv, s_render_args *a)
         case OPT_CKPT: a->checkpoint = optarg; break;
         case OPT_RESUME: farm->resume = 1; break;
         case OPT_NOADAPT: a->no_adaptive = 1; break;
+        case OPT_HDRHALF: a->hdr_half = 1; break;
         case OPT_QUALITY: bad = (a->quality = s_find_quality(optarg)) == NULL; break;
         case OPT_STRICT: a->strict = 1; break;
         case 'q': pf_log_set_level(PF_LOG_ERROR); break;
@@ -606,7 +609,7 @@ static int s_write_output(const s_render_args *a, const pf_settings_t *s, pf_ima
                 sum->dropped_samples);
     int rc = pf_image_write_png(img, out, s->exposure, err);
     if (rc == PF_OK && hdr)
-        rc = pf_image_write_hdr(img, hdr, err);
+        rc = pf_image_write_hdr(img, hdr, a->hdr_half, err);
     pf_image_free(img);
     if (rc != PF_OK) {
         pf_error("%s", err->msg);

@@ -187,7 +187,7 @@ int pf_image_read_hdr(pf_image_t *img, const char *path, pf_error_t *err)
     return pf_image_path_is_exr(path) ? pf_image_read_exr(img, path, err) : pf_image_read_pfm(img, path, err);
 }
 
-int pf_image_write_hdr(const pf_image_t *img, const char *path, pf_error_t *err)
+int pf_image_write_hdr(const pf_image_t *img, const char *path, int half, pf_error_t *err)
 {
-    return pf_image_path_is_exr(path) ? pf_image_write_exr(img, path, 0, err) : pf_image_write_pfm(img, path, err);
+    return pf_image_path_is_exr(path) ? pf_image_write_exr(img, path, half, err) : pf_image_write_pfm(img, path, err);
 }

@@ -30,10 +30,11 @@ int pf_image_read_exr(pf_image_t *img, const char *path, pf_error_t *err);
 int pf_image_write_exr(const pf_image_t *img, const char *path, int half, pf_error_t *err);
 /* Whether path ends in ".exr" (any case). */
 int pf_image_path_is_exr(const char *path);
-/* An HDR image by the path's extension: OpenEXR for ".exr" (float when
- * written), PFM otherwise. */
+/* An HDR image by the path's extension: OpenEXR for ".exr" (written as
+ * 32-bit float, or 16-bit half when half is set), PFM otherwise (always
+ * float; half is then ignored). */
 int pf_image_read_hdr(pf_image_t *img, const char *path, pf_error_t *err);
-int pf_image_write_hdr(const pf_image_t *img, const char *path, pf_error_t *err);
+int pf_image_write_hdr(const pf_image_t *img, const char *path, int half, pf_error_t *err);
 
 /* Counts non-finite and negative channel values. */
 size_t pf_image_count_bad(const pf_image_t *img, size_t *negative);

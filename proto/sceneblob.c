@@ -7,7 +7,8 @@
  *   str path                      (where the scene came from; for messages only)
  *   settings                      (the field group of messages.c, 100 bytes)
  *   u8 has_camera, vec3 pos, vec3 look_at, vec3 up, f32 vfov_deg,
- *     u8 fov_shorter, u8 left_handed, f32 lens_radius, f32 focal_distance
+ *     u8 fov_shorter, u8 left_handed, f32 lens_radius, f32 focal_distance,
+ *     u8 has_window, 4 f32 window, f32 frame_aspect   (version 11: the screen window)
  *   u32 nmats,    nmats x   { str name, u8 type, vec3 kd, vec3 ks, f32 ns, vec3 kt, f32 ior, vec3 le,
  *                             u8 twosided, vec3 eta, vec3 k, f32 alpha, f32 thickness, u32 kd_tex, u32 mix0, u32 mix1,
  *                             f32 amount, u32 amount_tex, u32 alpha_tex, u32 refl_tex,
@@ -15,7 +16,7 @@
  *                             (version 4: eta, k, alpha; version 5: type 4, the thin dielectric; version
  *                             7: type 5, the coated diffuse, thickness and kd_tex; version 9: types 6 and
  *                             7, diffuse transmission and mix, and after kd_tex: u32 mix0, u32 mix1, f32
- *                             amount, u32 amount_tex, u32 alpha_tex, then refl_tex to bump_tex; version 11:
+ *                             amount, u32 amount_tex, u32 alpha_tex, then refl_tex to bump_tex; version 12:
  *                             twosided)
  *   u32 nmeshes,  nmeshes x { str name, u64 nverts, u64 ntris, u8 has_normals, u8 has_uv, u32 alpha_tex,
  *                             nverts x vec3 pos, (has_normals) nverts x vec3 nrm,
@@ -140,6 +141,10 @@ int pf_sceneblob_write(const pf_scene_t *scene, pf_buf_t *out)
     W(pf_wr_u8(out, scene->camera.left_handed ? 1 : 0));
     W(pf_wr_f32(out, scene->camera.lens_radius));
     W(pf_wr_f32(out, scene->camera.focal_distance));
+    W(pf_wr_u8(out, scene->camera.has_window ? 1 : 0));
+    for (int i = 0; i < 4; i++)
+        W(pf_wr_f32(out, scene->camera.window[i]));
+    W(pf_wr_f32(out, scene->camera.frame_aspect));
 
     W(pf_wr_u32(out, (uint32_t)scene->nmats));
     for (size_t i = 0; i < scene->nmats && rc == 0; i++) {
@@ -365,6 +370,13 @@ static void s_read_camera(s_in_t *in, pf_scene_t *scene)
                (double)lens);
     scene->camera.lens_radius = lens;
     scene->camera.focal_distance = focus;
+    uint8_t win = s_u8(in, "camera", "has_window");
+    if (!in->status && win > 1)
+        s_fail(in, PF_EPARSE, "camera has_window is %u, not 0 or 1", (unsigned)win);
+    scene->camera.has_window = win;
+    for (int i = 0; i < 4; i++)
+        scene->camera.window[i] = s_f32(in, "camera", "window");
+    scene->camera.frame_aspect = s_f32(in, "camera", "frame_aspect"); /* the ranges: pf_scene_finalize */
 }
 
 static void s_read_materials(s_in_t *in, pf_scene_t *scene)

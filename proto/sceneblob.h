@@ -20,9 +20,11 @@
  * path_max_depth and the materials' mix, diffuse transmission, alpha,
  * normal and bump map and textured roughness fields; 10: the same records,
  * but a sphere whose material emits is a light (light/spherelight.h), which
- * an older worker would refuse or render dark; 11: materials gained
- * twosided (u8 after le), emission on both sides. Older blobs are refused. */
-#define PF_SCENEBLOB_VERSION 11
+ * an older worker would refuse or render dark; 11: the camera gained
+ * has_window, window and frame_aspect (after focal_distance); 12: materials
+ * gained twosided (u8 after le), emission on both sides. Older blobs are
+ * refused. */
+#define PF_SCENEBLOB_VERSION 12
 
 /* Serializes a finalized scene into out (reset first). 0 or PF_ENOMEM. */
 int pf_sceneblob_write(const pf_scene_t *scene, pf_buf_t *out);

@@ -6,6 +6,20 @@
  * rendered before the lens existed stays the same to the bit. */
 #include "scene/camera.h"
 
+#include <string.h>
+
+/* The screen window pbrt-v4's PerspectiveCamera gives a frame of aspect f
+ * when none is given: the fov spans the shorter axis with fov_shorter (pbrt's
+ * [-1, 1] x [-1/f, 1/f] for f < 1), else the vertical one. */
+static void s_default_window(int fov_shorter, float f, float win[4])
+{
+    int portrait = fov_shorter && f < 1.0f;
+    win[0] = portrait ? -1.0f : -f;
+    win[1] = portrait ? 1.0f : f;
+    win[2] = portrait ? -1.0f / f : -1.0f;
+    win[3] = portrait ? 1.0f / f : 1.0f;
+}
+
 pf_camera_t pf_camera_make(const pf_camera_desc_t *desc, int width, int height)
 {
     pf_camera_t c;
@@ -19,13 +33,34 @@ pf_camera_t pf_camera_make(const pf_camera_desc_t *desc, int width, int height)
      * width - x of the other does, mirrored. */
     if (desc->left_handed)
         c.right = pf_neg(c.right);
-    c.tan_half_v = tanf(0.5f * desc->vfov_deg * PF_PI / 180.0f);
+    float tan_half = tanf(0.5f * desc->vfov_deg * PF_PI / 180.0f);
+    c.tan_half_v = tan_half;
     c.aspect = (float)width / (float)height;
     /* The fov along the shorter axis: for a portrait image the horizontal
      * one, tan_half_h = tan_half_v * aspect; a landscape or square image's
      * shorter axis is the vertical one already. */
     if (desc->fov_shorter && width < height)
         c.tan_half_v = c.tan_half_v / c.aspect;
+    c.win_cx = c.win_cy = 0.0f;
+    /* A screen window (given, or the default of a frame aspect that is not
+     * the image's): the image spans it, stretched if its shape is not the
+     * image's. A window equal to the image's default one keeps the values
+     * above, so it renders the same bits as none. */
+    if (desc->has_window || desc->frame_aspect > 0.0f) {
+        float img[4], win[4];
+        s_default_window(desc->fov_shorter, c.aspect, img);
+        if (desc->has_window)
+            memcpy(win, desc->window, sizeof win);
+        else
+            s_default_window(desc->fov_shorter, desc->frame_aspect, win);
+        if (win[0] != img[0] || win[1] != img[1] || win[2] != img[2] || win[3] != img[3]) {
+            float hx = 0.5f * (win[1] - win[0]), hy = 0.5f * (win[3] - win[2]);
+            c.tan_half_v = tan_half * hy;
+            c.aspect = hx / hy;
+            c.win_cx = (win[0] + win[1]) / (win[1] - win[0]);
+            c.win_cy = (win[2] + win[3]) / (win[3] - win[2]);
+        }
+    }
     c.width = width;
     c.height = height;
     c.lens_radius = desc->lens_radius;
@@ -34,11 +69,13 @@ pf_camera_t pf_camera_make(const pf_camera_desc_t *desc, int width, int height)
 }
 
 /* The unnormalized pinhole direction through (fx, fy): forward plus the film
- * offsets, so its component along forward is 1. */
+ * offsets, so its component along forward is 1. The window's centre offsets
+ * are 0 without a screen window, and 2 fx / width - 1 is never -0, so adding
+ * them changes no bit of the plain camera's rays. */
 static pf_vec3 s_film_dir(const pf_camera_t *cam, float fx, float fy)
 {
-    float sx = (2.0f * fx / (float)cam->width - 1.0f) * cam->tan_half_v * cam->aspect;
-    float sy = (1.0f - 2.0f * fy / (float)cam->height) * cam->tan_half_v;
+    float sx = (2.0f * fx / (float)cam->width - 1.0f + cam->win_cx) * cam->tan_half_v * cam->aspect;
+    float sy = (1.0f - 2.0f * fy / (float)cam->height + cam->win_cy) * cam->tan_half_v;
     return pf_add(cam->forward, pf_add(pf_scale(cam->right, sx), pf_scale(cam->up, sy)));
 }
 

@@ -8,7 +8,16 @@
  * view spans the vertical axis, or with fov_shorter the shorter of the two
  * (pbrt's "fov"), decided by the image size given to pf_camera_make, so a
  * --size that turns a landscape image into a portrait one moves the fov to
- * the horizontal axis. */
+ * the horizontal axis.
+ *
+ * A screen window (pbrt-v4's ProjectiveCamera "screenwindow") names the
+ * part of the image plane at distance 1 that the image spans, in units of
+ * tan(fov / 2): x from xmin (left edge) to xmax, y from ymin (bottom) to
+ * ymax. Without one it is pbrt's default for the frame aspect f (pbrt's
+ * "frameaspectratio", else width / height): [-f, f] x [-1, 1], or with
+ * fov_shorter and f < 1 [-1, 1] x [-1/f, 1/f], which is the camera above;
+ * an off-centre window crops a larger image, a window of another shape than
+ * the image stretches it. */
 #ifndef PF_CAMERA_H
 #define PF_CAMERA_H
 
@@ -18,8 +27,9 @@
 typedef struct pf_camera {
     pf_vec3 pos;
     pf_vec3 right, up, forward; /* orthonormal frame; right is up x forward when left-handed */
-    float tan_half_v;           /* tan of half the vertical field of view */
-    float aspect;               /* width / height */
+    float tan_half_v;           /* tan of half the vertical field of view (half the window's height) */
+    float aspect;               /* width / height; with a screen window its half width / half height */
+    float win_cx, win_cy;       /* the window's centre over its half width, half height; 0 without one */
     int width, height;
     float lens_radius;          /* thin lens aperture radius, world units; 0: pinhole */
     float focal_distance;       /* distance from pos to the plane in focus, along forward */

@@ -447,7 +447,8 @@ static void s_frame_camera(pf_scene_t *self)
 
 /* The camera's frame and field of view, and its extras: flags 0 or 1, the
  * lens radius finite and >= 0, the focal distance finite and, with a lens,
- * > 0 (both within the ray tracer's range). */
+ * > 0 (both within the ray tracer's range); the screen window's bounds
+ * within +-1e6 and in order, the frame aspect 0 or within [1e-6, 1e6]. */
 static int s_check_camera(const pf_camera_desc_t *c, const char *file, pf_error_t *err)
 {
     if (!s_in_range(c->pos) || !pf_is_finite3(c->look_at) || !pf_is_finite3(c->up) || !(c->vfov_deg > 0.0f) ||
@@ -466,6 +467,19 @@ static int s_check_camera(const pf_camera_desc_t *c, const char *file, pf_error_
         return pf_error_set(err, PF_EPARSE, file, 0,
                             "bad camera: focal distance %g must be finite, and > 0 with a lens (radius %g)",
                             (double)c->focal_distance, (double)c->lens_radius);
+    int win_ok = 1;
+    for (int i = 0; i < 4; i++)
+        win_ok &= fabsf(c->window[i]) <= 1e6f;
+    if ((c->has_window != 0 && c->has_window != 1) || !win_ok ||
+        (c->has_window && !(c->window[0] < c->window[1] && c->window[2] < c->window[3])))
+        return pf_error_set(err, PF_EPARSE, file, 0,
+                            "bad camera: screen window [%g %g %g %g] (has_window %d) must lie within +-1e6 with "
+                            "xmin < xmax and ymin < ymax",
+                            (double)c->window[0], (double)c->window[1], (double)c->window[2], (double)c->window[3],
+                            c->has_window);
+    if (!(c->frame_aspect == 0.0f || (c->frame_aspect >= 1e-6f && c->frame_aspect <= 1e6f)))
+        return pf_error_set(err, PF_EPARSE, file, 0, "bad camera: frame aspect %g must be 0 or in [1e-6, 1e6]",
+                            (double)c->frame_aspect);
     return PF_OK;
 }
 

@@ -173,6 +173,14 @@ typedef struct pf_camera_desc {
     int left_handed;      /* 1: image right = up x forward (pbrt's left-handed camera space), 0: forward x up */
     float lens_radius;    /* thin lens: radius of the aperture, world units; 0: pinhole */
     float focal_distance; /* thin lens: distance to the plane in focus (> 0 when lens_radius > 0) */
+    /* pbrt's screen window, in units of tan(fov / 2) on the image plane at
+     * distance 1 (scene/camera.h): with has_window, window = xmin, xmax,
+     * ymin, ymax (xmin < xmax, ymin < ymax); without, the default one of
+     * frame_aspect. frame_aspect is pbrt's "frameaspectratio" (> 0), or 0:
+     * the image's width / height. */
+    int has_window;
+    float window[4];
+    float frame_aspect;
 } pf_camera_desc_t;
 
 /* The largest settings.gather_filter: a (2n+1)^2 window of pixels. */

@@ -12,7 +12,7 @@
  * of the queue at once.
  *
  * Trust. The coordinator is not believed blindly: a blob's buffer grows as
- * its chunks arrive (doubling, capped at the size the JOB announced and at
+ * its chunks arrive (an anonymous mapping doubling in place, capped at the size the JOB announced and at
  * S_MAX_BLOB_SIZE), so a JOB announcing 64 GiB allocates nothing until that
  * much data comes; a TILE beyond the credit READY announced, or a copy of a
  * lease already held, is dropped with a warning before its buffer is
@@ -21,10 +21,12 @@
  * This file owns the worker's blobs, built scene cache, BUILD list and
  * current job (fields of s_worker). Only the main thread calls it; the
  * compute thread reads a job and its blobs only through the work items. */
+#define _GNU_SOURCE /* mremap */
 #include <inttypes.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/mman.h>
 
 #include "base/hash.h"
 #include "base/reserve.h"
@@ -86,7 +88,8 @@ static s_blob *s_blob_find(s_worker *w, uint64_t hash, uint64_t size)
 
 static void s_blob_remove(s_worker *w, size_t i)
 {
-    free(w->blobs[i]->data);
+    if (w->blobs[i]->alloc)
+        munmap(w->blobs[i]->data, (size_t)w->blobs[i]->alloc);
     free(w->blobs[i]->leaves);
     free(w->blobs[i]);
     w->blobs[i] = w->blobs[--w->nblobs];
@@ -138,7 +141,11 @@ void pf_w_blobs_trim(s_worker *w)
 
 /* Makes room at b->data for need bytes (need <= b->size <= S_MAX_BLOB_SIZE):
  * the buffer doubles from S_BLOB_FIRST_ALLOC, never past the blob's size.
- * 0, or -1 when memory is short (b unchanged). */
+ * It is an anonymous mapping that mremap grows in place or by moving its
+ * pages, never by copying them: a realloc'd buffer was copied at every
+ * doubling, and for a 100 MB map blob under the sanitizers one such copy
+ * held the main loop for up to a second, long enough for the coordinator
+ * to declare the worker silent. 0, or -1 when memory is short (b unchanged). */
 static int s_blob_grow(s_blob *b, uint64_t need)
 {
     if (need <= b->alloc)
@@ -150,8 +157,9 @@ static int s_blob_grow(s_blob *b, uint64_t need)
         cap = b->size;
     if (cap > SIZE_MAX)
         return -1;
-    uint8_t *data = realloc(b->data, (size_t)cap);
-    if (!data)
+    void *data = b->alloc ? mremap(b->data, (size_t)b->alloc, (size_t)cap, MREMAP_MAYMOVE)
+                          : mmap(NULL, (size_t)cap, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+    if (data == MAP_FAILED)
         return -1;
     b->data = data;
     b->alloc = cap;

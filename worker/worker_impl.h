@@ -40,8 +40,8 @@
 /* A blob (scene or maps) being received or held in the cache. */
 typedef struct s_blob {
     uint64_t hash, size;
-    uint8_t *data;      /* grown as chunks arrive (never the announced size up front) */
-    uint64_t alloc;     /* bytes allocated at data */
+    uint8_t *data;      /* a mapping grown as chunks arrive (never the announced size up front) */
+    uint64_t alloc;     /* bytes mapped at data (0: none; munmap, never free) */
     uint64_t received;  /* bytes received, in order, from offset 0 */
     uint64_t requested; /* end of the range asked for so far */
     int complete;       /* received and hash-checked */

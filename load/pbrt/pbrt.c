@@ -349,6 +349,41 @@ static int s_name_coordsys(pf_pbrt_t *c, pf_pbrt_loc_t loc, const char *name, co
     return PF_OK;
 }
 
+/* "frameaspectratio" and "screenwindow" (pbrt-v4's ProjectiveCamera; the
+ * window's bounds in units of tan(fov / 2), scene/camera.h). The limits keep
+ * the rays' directions finite; pbrt's mirrored windows (xmin > xmax) are
+ * refused. */
+#define S_WINDOW_MAX 1e6
+static int s_screen_window(pf_pbrt_t *c, pf_pbrt_params_t *ps)
+{
+    pf_camera_desc_t *cam = &c->scene->camera;
+    pf_pbrt_param_t *fp = pf_pbrt_param(ps, "frameaspectratio");
+    double frame;
+    int rc = pf_pbrt_get_float(c, ps, "frameaspectratio", 0.0, &frame);
+    if (rc == PF_OK && fp && !(frame >= 1.0 / S_WINDOW_MAX && frame <= S_WINDOW_MAX))
+        rc = pf_pbrt_error(c, PF_ERANGE, fp->loc, "Camera: frameaspectratio %g must be in [1e-6, 1e6]", frame);
+    if (rc)
+        return rc;
+    cam->frame_aspect = (float)frame;
+    pf_pbrt_param_t *p = pf_pbrt_param(ps, "screenwindow");
+    cam->has_window = 0;
+    if (!p)
+        return PF_OK;
+    if ((p->type != PF_PBRT_P_FLOAT && p->type != PF_PBRT_P_INTEGER) || p->nnum != 4)
+        return pf_pbrt_error(c, PF_EPARSE, p->loc, "Camera: \"screenwindow\" takes four floats (xmin xmax ymin ymax)");
+    for (int i = 0; i < 4; i++)
+        if (!(fabs(p->num[i]) <= S_WINDOW_MAX))
+            return pf_pbrt_error(c, PF_ERANGE, p->loc, "Camera: screenwindow bound %g is beyond +-1e6", p->num[i]);
+    if (!(p->num[1] - p->num[0] >= 1.0 / S_WINDOW_MAX && p->num[3] - p->num[2] >= 1.0 / S_WINDOW_MAX))
+        return pf_pbrt_error(c, PF_ERANGE, p->loc,
+                             "Camera: screenwindow [%g %g %g %g] must have xmin < xmax and ymin < ymax (by 1e-6)",
+                             p->num[0], p->num[1], p->num[2], p->num[3]);
+    cam->has_window = 1;
+    for (int i = 0; i < 4; i++)
+        cam->window[i] = (float)p->num[i];
+    return PF_OK;
+}
+
 static int s_camera_params(pf_pbrt_t *c, const char *type, pf_pbrt_params_t *ps, pf_pbrt_loc_t loc)
 {
     double fov, lens, focal;
@@ -368,13 +403,8 @@ static int s_camera_params(pf_pbrt_t *c, const char *type, pf_pbrt_params_t *ps,
     c->scene->camera.fov_shorter = 1;
     c->scene->camera.lens_radius = (float)lens;
     c->scene->camera.focal_distance = (float)focal;
-    const char *approx[] = { "screenwindow", "frameaspectratio" };
-    for (int i = 0; i < 2 && rc == PF_OK; i++) {
-        pf_pbrt_param_t *p = pf_pbrt_param(ps, approx[i]);
-        if (p)
-            rc = pf_pbrt_warn(c, p->loc, "camera screen window (ignored)",
-                              "Camera: \"%s\" is not supported; the image spans the full field of view", approx[i]);
-    }
+    if (rc == PF_OK)
+        rc = s_screen_window(c, ps);
     if (rc == PF_OK && strcmp(type, "perspective") != 0)
         rc = pf_pbrt_warn(c, loc, "camera type (rendered as perspective)",
                           "Camera \"%s\" is rendered as a perspective camera", type);

@@ -82,14 +82,14 @@ static void test_round_trips(void)
     pf_image_free(&b);
 
     /* By extension: .exr is OpenEXR (float), anything else PFM. */
-    CHECK(pf_image_write_hdr(&a, s_path("x.EXR"), &err) == PF_OK && pf_image_path_is_exr(s_path("x.EXR")),
+    CHECK(pf_image_write_hdr(&a, s_path("x.EXR"), 0, &err) == PF_OK && pf_image_path_is_exr(s_path("x.EXR")),
           "write_hdr .EXR: %s", err.msg);
     size_t n = 0;
     uint8_t *bytes = s_slurp(s_path("x.EXR"), &n);
     CHECK(bytes && n > 4 && bytes[0] == 0x76 && bytes[1] == 0x2f && bytes[2] == 0x31 && bytes[3] == 0x01,
           "an .EXR path did not get the OpenEXR magic");
     free(bytes);
-    CHECK(pf_image_write_hdr(&a, s_path("x.pfm"), &err) == PF_OK, "write_hdr .pfm: %s", err.msg);
+    CHECK(pf_image_write_hdr(&a, s_path("x.pfm"), 1, &err) == PF_OK, "write_hdr .pfm: %s", err.msg);
     bytes = s_slurp(s_path("x.pfm"), &n);
     CHECK(bytes && n > 2 && bytes[0] == 'P' && bytes[1] == 'F', "a .pfm path did not get a PFM");
     free(bytes);

@@ -8,13 +8,14 @@
 # used (this kernel has no sch_netem; the latency is the veths' own).
 #
 # usage: scale_hosts.sh PHOTONFARM PHOTONFARM-WORKER OUTDIR COORD_MBIT WORKER_MBIT
-#                       WORKER_THREADS "W1 W2 ..." SCENE [render options...]
+#                       WORKER_THREADS FANOUT "W1 W2 ..." SCENE [render options...]
 #
 # For each worker count W it starts W fresh workers (empty blob caches, one
 # per namespace, --exit-on-bye) and a coordinator (--min-workers W, --verify 0,
-# --threads = the machine's cores, --fanout 0: the check validates the
-# model's coordinator-serves-all term; tests/integration/test_fanout.sh
-# measures fan-out) rendering SCENE with the given options, and
+# --threads = the machine's cores, --fanout FANOUT: 0 for the farm where the
+# coordinator serves every worker, 2 for the farm's default tree; the photon
+# pass and the irradiance precompute are spread over the workers as the farm
+# does by default) rendering SCENE with the given options, and
 # writes the coordinator's log to OUTDIR/wW.err and the workers' to
 # OUTDIR/wW-k.err; it prints one line per run, "run W=W rc=RC wall=SECONDS".
 # Exits 77 (skipped) with a SKIP line where namespaces, veths, a bridge or
@@ -22,8 +23,8 @@
 # 1 when a render fails.
 set -u
 
-PF=$1 PFW=$2 OUT=$3 COORD_MBIT=$4 WORKER_MBIT=$5 WTHREADS=$6 COUNTS=$7 SCENE=$8
-shift 8
+PF=$1 PFW=$2 OUT=$3 COORD_MBIT=$4 WORKER_MBIT=$5 WTHREADS=$6 FANOUT=$7 COUNTS=$8 SCENE=$9
+shift 9
 mkdir -p "$OUT" || exit 1
 
 skip_all() {
@@ -83,7 +84,7 @@ for w in $COUNTS; do
     done
     t0=$(date +%s.%N)
     ip netns exec "$NS_C" timeout 600 "$PF" render "$SCENE" -o "$OUT/w$w.png" "$@" --threads "$cores" \
-        --bind "$EP" --workers 0 --min-workers "$w" --verify 0 --max-wait 120 --fanout 0 -v \
+        --bind "$EP" --workers 0 --min-workers "$w" --verify 0 --max-wait 120 --fanout "$FANOUT" -v \
         >"$OUT/w$w.out" 2>"$OUT/w$w.err"
     rc=$?
     t1=$(date +%s.%N)

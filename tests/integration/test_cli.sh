@@ -334,6 +334,20 @@ check "--exposure 2 renders (exit 0)" rc_is 0
 check "--exposure 2 leaves the PFM unchanged" files_same "$T/t1.pfm" "$T/e2.pfm"
 check "--exposure 2 changes the PNG" files_differ "$T/t1.png" "$T/e2.png"
 
+# --hdr by extension: OpenEXR float holds the PFM's values exactly, half
+# within half precision (and in a smaller file).
+run render "${SPHERES[@]}" -o "$T/x1.png" --hdr "$T/x1.exr"
+check "--hdr x.exr renders (exit 0)" rc_is 0
+run compare "$T/x1.exr" "$T/t1.pfm"
+check "--hdr x.exr (float) holds the PFM's values exactly (relMSE 0)" relmse_is 0
+run render "${SPHERES[@]}" -o "$T/x2.png" --hdr "$T/x2.exr" --hdr-half
+check "--hdr x.exr --hdr-half renders (exit 0)" rc_is 0
+run compare "$T/x2.exr" "$T/t1.pfm"
+check "--hdr-half is within half precision of the float image (relMSE $(awk '$1 == "relMSE" { print $2 }' "$T/out"))" \
+    awk -v v="$(awk '$1 == "relMSE" { print $2 }' "$T/out")" 'BEGIN { exit !(v != "" && v + 0 > 0 && v + 0 < 1e-5) }'
+check "--hdr-half writes a smaller file than float" \
+    test "$(stat -c %s "$T/x2.exr")" -lt "$(stat -c %s "$T/x1.exr")"
+
 # ---------------------------------------------------------------------------
 echo "# 7. compare"
 

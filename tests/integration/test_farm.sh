@@ -671,6 +671,10 @@ resume_test() {
         check "11: $n: the resumed image is bit-identical to the uninterrupted one" same "$T/${n}_2.pfm" "$ref"
         check "11: $n: the log says what was resumed" logged "$T/${n}_2.err" "resuming from .*$n.ckpt"
         check "11: $n: the checkpoint is removed at the end" test ! -e "$T/$n.ckpt"
+        local times
+        times=$(sed -nE 's/.*done in ([0-9.]+) s: photons [0-9.]+ s, render ([0-9.]+) s.*/\1 \2/p' "$T/${n}_2.err")
+        check "11: $n: the summary's render time is within its run ($times)" \
+            awk -v t="${times% *}" -v r="${times#* }" 'BEGIN { exit !(t != "" && r + 0 <= t + 0) }'
     fi
     unset -n sref
     stop "$wa" "$wb"
@@ -742,6 +746,10 @@ photon_test() {
         irr=$(grep -E 'summary: irradiance spread' "$T/${n}_coord.err" | grep -oE '[0-9]+ on the workers' |
             grep -oE '^[0-9]+')
         check "12: the log says the workers computed irradiance chunks (${irr:-none})" gt "${irr:-0}" 0
+        # a worker's main loop held up by a 100 MB transfer (each copy of a
+        # realloc'd blob buffer took up to a second under the sanitizers)
+        # was declared silent, and the coordinator computed every chunk
+        check "12: no worker fell silent (kill $kill)" hasnt "$T/${n}_coord.err" "${n}_a .*silent"
         if [ "$kill" = 1 ]; then
             check "12: the log declares the killed worker dead" logged "$T/${n}_coord.err" "${n}_b.*(dead|lost|silent)"
             check "12: ... and its photon batches went back" logged "$T/${n}_coord.err" "${n}_b.*photon batches"

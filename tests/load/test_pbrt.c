@@ -702,7 +702,9 @@ static void test_camera(void)
               s->settings.photon_max_depth == 7 && s->settings.path_max_depth == 7,
               "maxdepth 7: max_depth %d photon_max_depth %d path_max_depth %d", s->settings.max_depth,
               s->settings.photon_max_depth, s->settings.path_max_depth);
-        CHECK(s_warned(&rep, "camera screen window") == 1 && rep.nwarnings == 1);
+        CHECK(c->has_window == 1 && c->window[0] == -1.0f && c->window[1] == 1.0f && c->window[2] == -1.0f &&
+              c->window[3] == 1.0f && c->frame_aspect == 0.0f && rep.nwarnings == 0,
+              "screenwindow read, no warning (%zu)", rep.nwarnings);
     }
     pf_scene_destroy(&s);
     /* A mirrored camera (Scale -1 1 1, as exporters write): right-handed. */
@@ -723,6 +725,12 @@ static void test_camera(void)
     s_fails("Scale 0 1 1\nCamera \"perspective\"\n", "scene.pbrt:2:1: Camera: the current transform cannot be inverted");
     s_fails("Camera \"perspective\" \"float fov\" 180\n", "scene.pbrt:1:22: Camera: fov must be in (0, 180)");
     s_fails("Film \"rgb\" \"integer xresolution\" 0\n", "scene.pbrt:1:1: Film: resolution 0x720 is out of range");
+    s = s_parse("Camera \"perspective\" \"float frameaspectratio\" 2.5\nWorldBegin\n", 0, NULL, &err);
+    CHECK(s && s->camera.frame_aspect == 2.5f && s->camera.has_window == 0, "frameaspectratio: %s", err.msg);
+    pf_scene_destroy(&s);
+    s_fails("Camera \"perspective\" \"float screenwindow\" [0 1 0]\n", "scene.pbrt:1:22: Camera: \"screenwindow\" takes four");
+    s_fails("Camera \"perspective\" \"float screenwindow\" [1 0 0 1]\n", "scene.pbrt:1:22: Camera: screenwindow [1 0 0 1] must");
+    s_fails("Camera \"perspective\" \"float frameaspectratio\" 0\n", "scene.pbrt:1:22: Camera: frameaspectratio 0 must");
 }
 
 /* The Bitterli scenes: counts, materials and the kinds of warnings. */

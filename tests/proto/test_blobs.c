@@ -2,7 +2,8 @@
  *
  * Scene blob: a small scene built in code (materials of every kind, a mesh
  * with normals and one without, a sphere, a point, a spot, a distant and an infinite light, a
- * left-handed thin-lens camera whose fov spans the shorter axis)
+ * left-handed thin-lens camera whose fov spans the shorter axis, with a
+ * screen window and a frame aspect)
  * and the shipped cornell-spheres scene round-trip into scenes equal in every
  * array, and re-serialize to the same bytes; every truncation (all lengths
  * for the small scene, a sample for cornell-spheres) fails cleanly; huge
@@ -169,7 +170,8 @@ static pf_scene_t *s_tiny_scene(void)
     pf_scene_add_light(s, &l);
     s->camera = (pf_camera_desc_t){ .pos = pf_v3(0, 1, 4), .look_at = pf_v3(0, 0.5f, 0), .up = pf_v3(0, 1, 0),
                                     .vfov_deg = 45.0f, .fov_shorter = 1, .left_handed = 1, .lens_radius = 0.05f,
-                                    .focal_distance = 4.25f };
+                                    .focal_distance = 4.25f, .has_window = 1,
+                                    .window = { -0.5f, 1.5f, -0.25f, 0.5f }, .frame_aspect = 1.5f };
     s->has_camera = 1;
     pf_error_t err;
     if (pf_scene_finalize(s, &err) != 0) {
@@ -290,9 +292,9 @@ static int s_scene_truncation_fails(const uint8_t *data, size_t len)
 /* Offsets of the tiny scene's fields, found by walking the documented layout
  * independently of the reader. */
 typedef struct s_offsets {
-    size_t reserved, has_camera, fov_shorter, left_handed, lens_radius, focal_distance, nmats, mat1_type, mat0_name, nmeshes;
+    size_t reserved, has_camera, fov_shorter, left_handed, lens_radius, focal_distance, has_window, window, frame_aspect, nmats, mat1_type, mat0_name, nmeshes;
     size_t mat4_eta; /* the conductor's eta, k, alpha */
-    size_t mat1_kd_tex;
+    size_t mat1_kd_tex, mat1_twosided;
     size_t mat7_mix0; /* the mix's first index */
     size_t mesh0_nverts, mesh0_ntris, mesh0_has_nrm, mesh0_has_uv, mesh0_pos, mesh0_idx, mesh0_mat;
     size_t nspheres, sphere0_radius, sphere0_mat, nlights, light0_type, ntexs, end;
@@ -315,6 +317,10 @@ static s_offsets_t s_walk(const uint8_t *d)
     o.lens_radius = at + 2;
     o.focal_distance = at + 6;
     at += 2 + 8;
+    o.has_window = at;
+    o.window = at + 1;
+    o.frame_aspect = at + 17;
+    at += 1 + 16 + 4;
     o.nmats = at;
     uint32_t nm = d[at] | (uint32_t)d[at + 1] << 8;
     at += 4;
@@ -322,12 +328,13 @@ static s_offsets_t s_walk(const uint8_t *d)
     for (uint32_t i = 0; i < nm; i++) {
         at += 2 + s_str_len_at(d + at);
         if (i == 1)
-            o.mat1_type = at, o.mat1_kd_tex = at + 1 + 56 + 28 + 4; /* after eta, k, alpha, thickness */
+            o.mat1_type = at, o.mat1_twosided = at + 1 + 56,
+            o.mat1_kd_tex = at + 1 + 56 + 1 + 28 + 4; /* after twosided, eta, k, alpha, thickness */
         if (i == 4)
-            o.mat4_eta = at + 1 + 56;
+            o.mat4_eta = at + 1 + 56 + 1;
         if (i == 7)
-            o.mat7_mix0 = at + 1 + 56 + 28 + 4 + 4; /* after kd_tex */
-        at += 1 + 56 + 36 + 20 + 20; /* and version 9: mix0, mix1, amount, amount_tex, alpha_tex, then refl_tex,
+            o.mat7_mix0 = at + 1 + 56 + 1 + 28 + 4 + 4; /* after kd_tex */
+        at += 1 + 56 + 1 + 36 + 20 + 20; /* version 12: twosided after le; and version 9: mix0, mix1, amount, amount_tex, alpha_tex, then refl_tex,
                                       * rough_tex, rough_remap, normal_tex, bump_tex */
     }
     o.nmeshes = at;
@@ -411,14 +418,16 @@ static void test_scene_blob(void)
 
     const s_spatch_t patches[] = {
         { 0, 1, 'X', 0, "bad magic", "magic" },
-        { 4, 2, 11, 0, "format version 11", "version" },
-        { 4, 2, 2, 0, "format version 2, this build reads 10", "version 2 (before the lens)" },
-        { 4, 2, 3, 0, "format version 3, this build reads 10", "version 3 (before the conductor)" },
-        { 4, 2, 4, 0, "format version 4, this build reads 10", "version 4 (before the thin dielectric)" },
-        { 4, 2, 5, 0, "format version 5, this build reads 10", "version 5 (before the distant light)" },
-        { 4, 2, 6, 0, "format version 6, this build reads 10", "version 6 (before the coat and the textures)" },
-        { 4, 2, 7, 0, "format version 7, this build reads 10", "version 7 (before the environment maps)" },
-        { 4, 2, 8, 0, "format version 8, this build reads 10", "version 8 (before mix, diffuse transmission, maps and the path-length limit)" },
+        { 4, 2, 13, 0, "format version 13", "version" },
+        { 4, 2, 2, 0, "format version 2, this build reads 12", "version 2 (before the lens)" },
+        { 4, 2, 3, 0, "format version 3, this build reads 12", "version 3 (before the conductor)" },
+        { 4, 2, 4, 0, "format version 4, this build reads 12", "version 4 (before the thin dielectric)" },
+        { 4, 2, 5, 0, "format version 5, this build reads 12", "version 5 (before the distant light)" },
+        { 4, 2, 6, 0, "format version 6, this build reads 12", "version 6 (before the coat and the textures)" },
+        { 4, 2, 7, 0, "format version 7, this build reads 12", "version 7 (before the environment maps)" },
+        { 4, 2, 8, 0, "format version 8, this build reads 12", "version 8 (before mix, diffuse transmission, maps and the path-length limit)" },
+        { 4, 2, 10, 0, "format version 10, this build reads 12", "version 10 (before the screen window)" },
+        { 4, 2, 11, 0, "format version 11, this build reads 12", "version 11 (before two-sided emission)" },
         { o.reserved, 2, 1, 0, "reserved", "reserved field" },
         { o.has_camera, 1, 2, 0, "has_camera", "has_camera 2" },
         { o.has_camera + 1, -4, 0, NAN, "camera pos is not a finite number", "camera NaN" },
@@ -430,6 +439,12 @@ static void test_scene_blob(void)
         { o.focal_distance, -4, 0, 0.0f, "camera focal_distance is 0, not > 0 with a lens", "focal distance 0" },
         { o.focal_distance, -4, 0, -2.0f, "camera focal_distance is -2, not > 0 with a lens", "negative focus" },
         { o.focal_distance, -4, 0, INFINITY, "camera focal_distance is not a finite number", "infinite focus" },
+        { o.has_window, 1, 2, 0, "camera has_window is 2, not 0 or 1", "has_window 2" },
+        { o.mat1_twosided, 1, 2, 0, "twosided must be 0 or 1", "material twosided 2 (finalize)" },
+        { o.window + 4, -4, 0, NAN, "camera window is not a finite number", "NaN window" },
+        { o.window + 4, -4, 0, -0.75f, "screen window [-0.5 -0.75 -0.25 0.5] (has_window 1) must lie", "xmax < xmin (finalize)" },
+        { o.window + 12, -4, 0, 2e6f, "must lie within +-1e6", "window beyond 1e6 (finalize)" },
+        { o.frame_aspect, -4, 0, -1.0f, "frame aspect -1 must be 0 or in [1e-6, 1e6]", "negative frame aspect (finalize)" },
         { o.lens_radius, -4, 0, 2e18f, "lens radius 2e+18 must be >= 0 and at most 1e18", "lens 2e18 (finalize)" },
         { o.nmats, 4, 0xffffffffu, 0, "materials need at least", "material count 2^32-1" },
         { o.nmats, 4, 7, 0, "", "material count one too many" },

@@ -14,6 +14,15 @@
  *   focus (perpendicular to the view axis, focal_distance along it) at the
  *   point the pinhole ray reaches, within 1e-4 relative; origins lie on the
  *   lens plane within lens_radius of the eye and fill the disc uniformly.
+ * - Screen window: a window equal to the default (landscape, portrait with
+ *   fov_shorter, and a frame aspect equal to the image's) gives the plain
+ *   camera's rays bit for bit; a quadrant window on W x H gives the rays of
+ *   that quadrant of the default 2W x 2H camera (pixel x of the crop is
+ *   pixel W + x of the big one) within 1e-6, with and without the lens and
+ *   left-handed; an off-centre stretched window's rays cross the plane at
+ *   distance 1 where xmin + (xmax - xmin) fx / W, ymax - (ymax - ymin) fy / H
+ *   times tan(fov / 2) put them; a frame aspect f without a window is
+ *   [-f, f] x [-1, 1] (or the portrait one with fov_shorter and f < 1).
  * - pf_scene_finalize refuses bad extras (flags not 0/1, a negative or
  *   non-finite lens radius, a focal distance not > 0 with a lens) naming the
  *   scene's file, and accepts the pinhole's.
@@ -216,6 +225,109 @@ static void test_thin_lens(void)
     CHECK(pf_len(pf_sub(s_on_plane(&cam, a, 3.0f), s_on_plane(&cam, b, 3.0f))) > 0.1f, "defocused off the focal plane");
 }
 
+/* The screen window, as the header says. */
+static void s_window(pf_camera_desc_t *d, float x0, float x1, float y0, float y1)
+{
+    d->has_window = 1;
+    d->window[0] = x0, d->window[1] = x1, d->window[2] = y0, d->window[3] = y1;
+}
+
+static int s_same_grid(const pf_camera_desc_t *a, const pf_camera_desc_t *b, int w, int h)
+{
+    pf_camera_t ca = pf_camera_make(a, w, h), cb = pf_camera_make(b, w, h);
+    int same = 1;
+    for (int y = 0; y <= h; y += 7)
+        for (int x = 0; x <= w; x += 7)
+            same &= s_ray_same(pf_camera_ray(&ca, (float)x + 0.25f, (float)y + 0.75f),
+                               pf_camera_ray(&cb, (float)x + 0.25f, (float)y + 0.75f));
+    return same;
+}
+
+/* Where the ray meets the camera's plane at distance 1 along forward, in
+ * units of tan_half: (x right, y up). */
+static void s_screen(const pf_camera_t *cam, pf_ray_t r, double tan_half, double *x, double *y)
+{
+    double z = pf_dot(r.d, cam->forward);
+    *x = pf_dot(r.d, cam->right) / z / tan_half;
+    *y = pf_dot(r.d, cam->up) / z / tan_half;
+}
+
+static void test_screen_window(void)
+{
+    pf_camera_desc_t d = s_general, w = s_general;
+    d.fov_shorter = w.fov_shorter = 1;
+    s_window(&w, -1.5f, 1.5f, -1.0f, 1.0f);
+    CHECK(s_same_grid(&d, &w, 300, 200), "landscape: the default window gives the same rays");
+    s_window(&w, -1.0f, 1.0f, -2.0f, 2.0f);
+    CHECK(s_same_grid(&d, &w, 200, 400), "portrait, fov_shorter: the default window gives the same rays");
+    d.fov_shorter = w.fov_shorter = 0;
+    s_window(&w, -0.5f, 0.5f, -1.0f, 1.0f);
+    CHECK(s_same_grid(&d, &w, 200, 400), "portrait, vertical fov: the default window gives the same rays");
+    w = d;
+    w.frame_aspect = 1.5f;
+    CHECK(s_same_grid(&d, &w, 300, 200), "the image's frame aspect gives the same rays");
+    w.frame_aspect = 2.0f;
+    CHECK(!s_same_grid(&d, &w, 300, 200), "another frame aspect changes the rays");
+
+    /* Quadrants of a 2W x 2H image, with the lens and either hand. */
+    const int W = 96, H = 64;
+    const double t = tan(25.0 * M_PI / 180.0);
+    int close = 0, n = 0;
+    double worst = 0;
+    for (int k = 0; k < 8; k++) {
+        pf_camera_desc_t big = s_general;
+        big.fov_shorter = 1;
+        big.left_handed = k & 1;
+        big.lens_radius = (k & 2) ? 0.2f : 0.0f;
+        big.focal_distance = 6.0f;
+        pf_camera_desc_t small = big;
+        int qx = (k >> 2) & 1, qy = k & 1; /* quadrant: left/right, top/bottom */
+        float a = 1.5f;
+        s_window(&small, qx ? 0.0f : -a, qx ? a : 0.0f, qy ? -1.0f : 0.0f, qy ? 0.0f : 1.0f);
+        pf_camera_t cb = pf_camera_make(&big, 2 * W, 2 * H), cs = pf_camera_make(&small, W, H);
+        for (int i = 0; i < 300; i++, n++) {
+            float fx = (float)(i % 20) * (float)W / 19.0f, fy = (float)(i / 20) * (float)H / 14.0f;
+            float u1 = (float)(i % 7) / 7.0f, u2 = (float)(i % 11) / 11.0f;
+            pf_ray_t rb = pf_camera_ray_lens(&cb, fx + (float)(qx * W), fy + (float)(qy * H), u1, u2);
+            pf_ray_t rs = pf_camera_ray_lens(&cs, fx, fy, u1, u2);
+            double e = fmax((double)pf_len(pf_sub(rb.d, rs.d)), (double)pf_len(pf_sub(rb.o, rs.o)));
+            worst = fmax(worst, e);
+            close += e <= 1e-6;
+        }
+    }
+    CHECK(close == n, "quadrant windows: the big camera's rays within 1e-6: %d of %d (worst %.2g)", close, n, worst);
+
+    /* Off-centre and stretched: the rays cross the plane at distance 1 where the window puts them. */
+    pf_camera_desc_t o = s_general;
+    o.fov_shorter = 1;
+    s_window(&o, -0.3f, 1.1f, -0.2f, 0.5f);
+    pf_camera_t co = pf_camera_make(&o, 200, 100);
+    int on = 0;
+    n = 0;
+    for (int y = 0; y <= 100; y += 10)
+        for (int x = 0; x <= 200; x += 20, n++) {
+            double sx, sy;
+            s_screen(&co, pf_camera_ray(&co, (float)x, (float)y), t, &sx, &sy);
+            double wx = -0.3 + 1.4 * x / 200.0, wy = 0.5 - 0.7 * y / 100.0;
+            on += fabs(sx - wx) < 1e-5 && fabs(sy - wy) < 1e-5;
+        }
+    CHECK(on == n, "off-centre window: rays where the window puts them: %d of %d", on, n);
+    /* A frame aspect without a window: [-f, f] x [-1, 1], or [-1, 1] x [-1/f, 1/f] in portrait. */
+    for (int k = 0; k < 2; k++) {
+        pf_camera_desc_t f = s_general;
+        f.fov_shorter = 1;
+        f.frame_aspect = k ? 0.5f : 3.0f;
+        pf_camera_t cf = pf_camera_make(&f, 100, 100);
+        double x0, y0, x1, y1;
+        s_screen(&cf, pf_camera_ray(&cf, 0, 0), t, &x0, &y0);
+        s_screen(&cf, pf_camera_ray(&cf, 100, 100), t, &x1, &y1);
+        double wx = k ? 1.0 : 3.0, wy = k ? 2.0 : 1.0;
+        CHECK(fabs(x0 + wx) < 1e-5 && fabs(y0 - wy) < 1e-5 && fabs(x1 - wx) < 1e-5 && fabs(y1 + wy) < 1e-5,
+              "frame aspect %g: corners (%g, %g) (%g, %g), want (-%g, %g) (%g, -%g)", (double)f.frame_aspect, x0, y0,
+              x1, y1, wx, wy, wx, wy);
+    }
+}
+
 /* pf_scene_finalize checks a loaded scene's camera extras and names the file. */
 static void test_finalize(void)
 {
@@ -269,5 +381,6 @@ int main(void)
     test_fov_shorter();
     test_left_handed();
     test_thin_lens();
+    test_screen_window();
     return pf_test_finish();
 }
