@@ -1221,8 +1221,11 @@ def main(argv=None):
                     help='seconds before a render is killed (default 600; --quick 120)')
     ap.add_argument('--photonfarm', default=os.path.join(ROOT, 'build', 'bin', 'photonfarm'),
                     help='the renderer (default build/bin/photonfarm)')
-    ap.add_argument('--refs', default=os.path.join(os.path.dirname(ROOT), 'shared', 'references'),
-                    help='reference images (default ../shared/references)')
+    shared_refs = os.path.join(os.path.dirname(ROOT), 'shared', 'references')
+    ap.add_argument('--refs', default=shared_refs if os.path.isdir(shared_refs) else
+                    os.path.join(ROOT, 'tests', 'data', 'references'),
+                    help='reference images (default ../shared/references, else the 128-pixel copies in '
+                    'tests/data/references)')
     ap.add_argument('--work', default=os.path.join(ROOT, 'build', 'bench'),
                     help='logs, plot scripts and the generated mesh (default build/bench)')
     ap.add_argument('--keep-images', action='store_true', help='keep the rendered PNG and PFM files in --work')

@@ -197,7 +197,8 @@ def test_end_to_end(tmp, exe):
         return
     out = os.path.join(tmp, 'e2e')
     p = run_bench(['--quick', '--families', 'spp', '--scenes', 'cornell-box', '--size', '64', '--points', '2',
-                   '--photonfarm', exe, '--out', out, '--work', os.path.join(tmp, 'w5')])
+                   '--photonfarm', exe, '--out', out, '--work', os.path.join(tmp, 'w5'),
+                   '--refs', os.path.join(ROOT, 'tests', 'data', 'references')])
     check(p.returncode == 0, 'end to end: exit 0' + ('' if p.returncode == 0 else ': ' + p.stderr[-800:]))
     path = os.path.join(out, 'sweep-quick.csv')
     with open(path, newline='') as fp:
