@@ -1,5 +1,6 @@
-/* envmap_load.h: private to load/. Reads an environment image (PFM, or
- * OpenEXR by its extension) into a scene map, for the JSON and pbrt readers. */
+/* envmap_load.h: private to load/. Reads an environment image (by its
+ * extension: PFM, OpenEXR, else Radiance HDR or an 8-bit image through
+ * stb_image) into a scene map, for the JSON and pbrt readers. */
 #ifndef PF_ENVMAP_LOAD_H
 #define PF_ENVMAP_LOAD_H
 

@@ -1,6 +1,6 @@
 /* scene_json_env.c: the JSON reader's image-based infinite light:
- *   { "type": "infinite", "image": "sky.pfm" (or .exr, relative to the
- *     scene file), "mapping": "equalarea" (the default, as pbrt-v4) or
+ *   { "type": "infinite", "image": "sky.pfm" (or .exr, .hdr, or an
+ *     8-bit image taken as sRGB; relative to the scene file), "mapping": "equalarea" (the default, as pbrt-v4) or
  *     "equirect", "scale": a number or RGB (default 1), "up": the world
  *     direction of the map's +z, its zenith (default [0, 1, 0]) }
  * The map's +x goes to the world direction of +x made perpendicular to up

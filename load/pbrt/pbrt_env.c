@@ -1,8 +1,8 @@
 /* pbrt_env.c: the pbrt-v4 reader's image-based infinite light,
  * LightSource "infinite" with "filename" (pbrt-v4's ImageInfiniteLight):
- * the image (PFM or EXR) read with the equal-area octahedral mapping, which
- * pbrt-v4 uses for every image infinite light; the CTM at the LightSource
- * is the light's frame (renderFromLight: a world direction d looks up the
+ * the image (PFM, EXR, HDR or 8-bit sRGB; load/envmap_load.c) read with
+ * the equal-area octahedral mapping, which pbrt-v4 uses for every image
+ * infinite light; the CTM at the LightSource is the light's frame (renderFromLight: a world direction d looks up the
  * map at CTM^-1 d); radiance = scale * pixel, and with "illuminance" E the
  * scale is multiplied by E / k with pbrt-v4's k: the sum over the pixels of
  * the upper hemisphere (light frame +z) of lum * cos, times 2 pi / (w h).

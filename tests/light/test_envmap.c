@@ -16,11 +16,15 @@
  *   (e) the scene blob carries the map bit for bit;
  *   (f) the readers: pbrt-v4 "infinite" with a filename (the CTM turns the
  *       map, scale and illuminance apply), JSON equirect; a non-square map
- *       and a missing file are errors naming the file (and file:line). */
+ *       and a missing file are errors naming the file (and file:line);
+ *       skies in Radiance HDR and 8-bit PNG (sRGB-decoded), a broken .hdr
+ *       an error naming it. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+
+#include <stb_image_write.h>
 
 #include "base/log.h"
 #include "base/rng.h"
@@ -436,6 +440,59 @@ static void s_write(const char *path, const char *text)
 static const char *s_pbrt_body = "Shape \"trianglemesh\" \"point3 P\" [ -1 -1 0 1 -1 0 1 1 0 -1 1 0 ] "
                                  "\"integer indices\" [ 0 1 2 0 2 3 ]\n";
 
+/* Skies in Radiance HDR and 8-bit PNG (read as textures are): the HDR's
+ * values as written (RGBE keeps 8 bits of mantissa), the PNG's sRGB-decoded. */
+static void s_test_ldr_skies(const char *dir, const char *scene)
+{
+    enum { W = 32, H = 16 };
+    static float hdr[W * H * 3];
+    static unsigned char png[W * H * 3];
+    for (int k = 0; k < W * H * 3; k++) {
+        hdr[k] = 1.5f;
+        png[k] = 128;
+    }
+    hdr[0] = 15.0f; /* the top-left pixel: the zenith's first columns */
+    png[0] = 255;
+    char path[300], text[1024];
+    snprintf(path, sizeof path, "%s/sky.hdr", dir);
+    PF_CHECK(stbi_write_hdr(path, W, H, 3, hdr));
+    snprintf(path, sizeof path, "%s/sky.png", dir);
+    PF_CHECK(stbi_write_png(path, W, H, 3, png, W * 3));
+    snprintf(path, sizeof path, "%s/bad.hdr", dir);
+    s_write(path, "#?RADIANCE\nthis is not a picture\n");
+    const char *names[3] = { "sky.hdr", "sky.png", "bad.hdr" };
+    const float want_up[2] = { 15.0f, 1.0f }, want_side[2] = { 1.5f, 0.21586050f };
+    for (int i = 0; i < 3; i++) {
+        snprintf(text, sizeof text,
+                 "{ \"objects\": [ { \"type\": \"quad\", \"origin\": [-1, 0, -1], \"edge1\": [2, 0, 0], "
+                 "\"edge2\": [0, 0, 2], \"material\": \"m\" } ],\n  \"materials\": [ { \"name\": \"m\", "
+                 "\"kd\": 0.5 } ],\n  \"lights\": [ { \"type\": \"infinite\", \"image\": \"%s\", "
+                 "\"mapping\": \"equirect\" } ] }\n",
+                 names[i]);
+        s_write(scene, text);
+        pf_error_t err = { { 0 } };
+        pf_scene_t *sc = pf_scene_load(scene, &err);
+        if (i == 2) {
+            CHECK(sc == NULL && strstr(err.msg, "bad.hdr"), "a broken .hdr sky: %s", err.msg);
+            pf_scene_destroy(&sc);
+            continue;
+        }
+        CHECK(sc != NULL, "JSON with %s: %s", names[i], err.msg);
+        if (!sc)
+            continue;
+        pf_lights_t *lt = pf_lights_build(sc);
+        /* world (x, y, z) is light (x, -z, y): this is near the zenith at an azimuth just above 0, column 0 */
+        pf_vec3 up = pf_lights_sky(lt, pf_norm(pf_v3(1.0f, 1000.0f, -0.001f)));
+        pf_vec3 side = pf_lights_sky(lt, pf_v3(1, 0, 0));
+        CHECK(fabsf(up.x - want_up[i]) < 1e-5f * want_up[i] && fabsf(side.x - want_side[i]) < 1e-5f &&
+                  fabsf(side.y - want_side[i]) < 1e-5f,
+              "%s: zenith %g (want %g), side %g %g (want %g)", names[i], up.x, want_up[i], side.x, side.y,
+              want_side[i]);
+        pf_lights_destroy(&lt);
+        pf_scene_destroy(&sc);
+    }
+}
+
 static void s_test_readers(void)
 {
     char dir[] = "/tmp/pf_envmap_XXXXXX";
@@ -522,6 +579,7 @@ static void s_test_readers(void)
     sc = pf_scene_load(scene, &err);
     CHECK(sc == NULL && strstr(err.msg, "rect.pfm") && strstr(err.msg, "square"), "JSON non-square: %s", err.msg);
     pf_scene_destroy(&sc);
+    s_test_ldr_skies(dir, scene);
     char cmd[300];
     snprintf(cmd, sizeof cmd, "rm -rf %s", dir);
     if (system(cmd) != 0)
