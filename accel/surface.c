@@ -44,15 +44,24 @@ uint32_t pf_mix_choose(const pf_scene_t *scene, const pf_hit_t *hit, uint32_t mi
 }
 
 /* The textured slots beyond kd: a conductor's reflectance (pbrt-v4's
- * eta 1, k from it) and the roughness of a conductor or a coat. */
+ * eta 1, k from it), a Phong lobe's or a mirror's ks (MTL map_Ks: times
+ * the texture; the Phong ks at most 1 - kd, kd already resolved, so the
+ * surface reflects no more than it receives) and the roughness of a
+ * conductor or a coat. */
 static void s_more_slots(const pf_scene_t *scene, pf_material_t *m, const float uv[2])
 {
-    if (m->refl_tex && m->type == PF_MAT_CONDUCTOR) {
+    if (m->refl_tex) {
         pf_vec3 r = pf_vmin(pf_vmax(pf_texture_eval(scene, m->refl_tex, uv[0], uv[1]), pf_v3s(0.0f)), pf_v3s(1.0f));
-        m->ks = r;
-        m->eta = pf_v3s(1.0f);
-        m->k = pf_v3(pf_conductor_k_of_reflectance(r.x), pf_conductor_k_of_reflectance(r.y),
-                     pf_conductor_k_of_reflectance(r.z));
+        if (m->type == PF_MAT_CONDUCTOR) {
+            m->ks = r;
+            m->eta = pf_v3s(1.0f);
+            m->k = pf_v3(pf_conductor_k_of_reflectance(r.x), pf_conductor_k_of_reflectance(r.y),
+                         pf_conductor_k_of_reflectance(r.z));
+        } else if (m->type == PF_MAT_MIRROR) {
+            m->ks = pf_mul(m->ks, r);
+        } else if (m->type == PF_MAT_DIFFUSE) {
+            m->ks = pf_vmin(pf_mul(m->ks, r), pf_vmax(pf_sub(pf_v3s(1.0f), m->kd), pf_v3s(0.0f)));
+        }
     }
     if (m->rough_tex) {
         float r = fmaxf(pf_texture_eval(scene, m->rough_tex, uv[0], uv[1]).x, 0.0f);

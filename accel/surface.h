@@ -16,7 +16,9 @@ void pf_hit_uv(const pf_scene_t *scene, const pf_hit_t *hit, float uv[2]);
 
 /* A copy of the hit's material with its textured slots evaluated at the
  * hit's uv: kd (clamped to [0, 1]); a conductor's reflectance refl_tex
- * (clamped to [0, 1]: ks, eta 1 and k from it); roughness rough_tex (alpha,
+ * (clamped to [0, 1]: ks, eta 1 and k from it), a Phong lobe's or a
+ * mirror's ks times refl_tex (MTL map_Ks; a Phong ks held to at most
+ * 1 - kd); roughness rough_tex (alpha,
  * remapped by sqrt when rough_remap, clamped to [0, 1]). The material
  * itself when it has none. The normal and bump maps bend the hit's shading
  * normal instead (accel/shading.h). A MIX material is first resolved to one

@@ -47,7 +47,11 @@
  *   map_d file (same options): an alpha cut-out of every triangle with this
  *   material (alpha_tex; the image's mean channel, linear: below a
  *   hash of the ray the hit is skipped, accel/alpha.c), any type.
- *   Other maps (map_Ks, map_Ns, map_Ka, disp, decal, refl, ...) are
+ *   map_Ks file (same options, sRGB as map_Kd): the Phong lobe's ks (illum
+ *   2) or a mirror's reflectance (illum 3, 5, 8) times the image per hit
+ *   (refl_tex; Ks absent counts as 1), a Phong ks held to 1 - kd per
+ *   channel at each hit; on other kinds a warning, not rendered.
+ *   Other maps (map_Ns, map_Ka, disp, decal, refl, ...) are
  *   not rendered: one warning per kind at the end, with the count and
  *   the first line. Ignored without a word: Ka, sharpness.
  *   Other statements are skipped with one warning per keyword.
@@ -84,6 +88,7 @@ typedef struct s_mtl {
     uint32_t kd_tex; /* map_Kd's texture ref, or 0 */
     uint32_t d_tex;  /* map_d's texture ref, or 0 */
     uint32_t bump_tex, norm_tex; /* bump / map_Bump's and norm's texture refs, or 0 */
+    uint32_t ks_tex; /* map_Ks's texture ref, or 0 */
 } s_mtl_t;
 
 #define S_MAX_WARNED 32
@@ -225,6 +230,7 @@ static int s_finish(s_ctx_t *c, const s_mtl_t *s)
     if (illum == 3 || illum == 5 || illum == 8) {
         m.type = PF_MAT_MIRROR;
         m.ks = (s->has_ks && !pf_is_black(s->ks)) ? s->ks : ones;
+        m.refl_tex = s->ks_tex; /* the reflectance times map_Ks per hit */
     } else if (illum == 4 || illum == 6 || illum == 7 || illum == 9) {
         m.type = PF_MAT_GLASS;
         m.ks = (s->has_ks && !pf_is_black(s->ks)) ? s->ks : ones;
@@ -237,12 +243,14 @@ static int s_finish(s_ctx_t *c, const s_mtl_t *s)
             pf_warn("%s:%d: material '%s': unknown illum %d, treated as 2 (diffuse + Phong)", c->path, s->line,
                     s->name, illum);
         m.type = PF_MAT_DIFFUSE;
-        int phong = s->has_ks && !pf_is_black(s->ks) && (illum == 2 || illum > 10 || (illum < 0 && s->has_ns));
+        int lobe = s->has_ks ? !pf_is_black(s->ks) : s->ks_tex != 0; /* map_Ks without Ks: Ks 1 */
+        int phong = lobe && (illum == 2 || illum > 10 || (illum < 0 && s->has_ns));
         if (phong) {
-            m.ks = s->ks;
+            m.ks = s->has_ks ? s->ks : ones;
             m.ns = s->has_ns ? s->ns : 1.0f;
+            m.refl_tex = s->ks_tex; /* ks times map_Ks per hit, at most 1 - kd (accel/surface.c) */
             float mx = pf_maxc(pf_add(m.kd, m.ks));
-            if (mx > 1.0f) {
+            if (mx > 1.0f && s->has_ks) {
                 float k = 1.0f / mx;
                 m.kd = pf_scale(m.kd, k);
                 m.ks = pf_scale(m.ks, k);
@@ -254,6 +262,10 @@ static int s_finish(s_ctx_t *c, const s_mtl_t *s)
             pf_warn("%s:%d: material '%s': transparency (d %g) is ignored for illum 0-2; the surface is opaque",
                     c->path, s->line, s->name, s->d);
     }
+    if (s->ks_tex && !m.refl_tex)
+        pf_warn("%s:%d: material '%s': map_Ks is not rendered for this kind of material (only for a Phong lobe, "
+                "illum 2, and a mirror, illum 3, 5, 8)",
+                c->path, s->line, s->name);
     if (s->kd_tex && (m.type == PF_MAT_DIFFUSE || m.type == PF_MAT_COATED))
         m.kd_tex = s->kd_tex;
     else if (s->kd_tex && m.type == PF_MAT_CONDUCTOR)
@@ -339,13 +351,14 @@ static int s_map_option(const char *opt, size_t n)
     return -1;
 }
 
-/* map_Kd, bump / map_Bump, norm or map_d [options] file (which 0, 1, 2,
- * 3): reads the image into a scene texture (-bm, the bump multiplier, its
- * scale; a bump or normal map is linear: heights and directions, not
- * colours, and an alpha mask is a number); a missing image is a warning. */
+/* map_Kd, bump / map_Bump, norm, map_d or map_Ks [options] file (which 0,
+ * 1, 2, 3, 4): reads the image into a scene texture (-bm, the bump
+ * multiplier, its scale; a bump or normal map is linear: heights and
+ * directions, not colours, and an alpha mask is a number; the two colour
+ * maps are sRGB by default); a missing image is a warning. */
 static int s_map_image(s_ctx_t *c, const char *p, int which)
 {
-    static const char *const kws[4] = { "map_Kd", "bump", "norm", "map_d" };
+    static const char *const kws[5] = { "map_Kd", "bump", "norm", "map_d", "map_Ks" };
     const char *kw = kws[which];
     pf_texture_t t = pf_texture_constant(c->cur.name, pf_v3s(0.0f));
     for (;;) {
@@ -405,12 +418,17 @@ static int s_map_image(s_ctx_t *c, const char *p, int which)
     if (snprintf(path, sizeof path, "%.*s%.*s", dirlen, c->path, (int)n, p) >= (int)sizeof path)
         return pf_error_set(c->err, PF_EPARSE, c->path, c->line, "%s: path too long", kw);
     pf_error_t e = { { 0 } };
-    int ref = pf_texture_load_image(c->scene, path, &t, which ? PF_TEXENC_LINEAR : PF_TEXENC_DEFAULT, c->path,
+    int colour = which == 0 || which == 4;
+    int ref = pf_texture_load_image(c->scene, path, &t, colour ? PF_TEXENC_DEFAULT : PF_TEXENC_LINEAR, c->path,
                                     c->line, &e);
     if (ref == PF_EIO) {
         /* A missing image, like a missing MTL file, is common in downloaded
          * models and not worth failing the scene over. */
-        pf_warn("%s; %s", e.msg, which == 0 ? "Kd stands in" : which == 3 ? "the surface stays opaque" : "the surface stays unbent");
+        pf_warn("%s; %s", e.msg,
+                which == 0   ? "Kd stands in"
+                : which == 4 ? "Ks stands in"
+                : which == 3 ? "the surface stays opaque"
+                             : "the surface stays unbent");
         return PF_OK;
     }
     if (ref < 0) {
@@ -418,7 +436,7 @@ static int s_map_image(s_ctx_t *c, const char *p, int which)
             *c->err = e;
         return ref;
     }
-    uint32_t *out[4] = { &c->cur.kd_tex, &c->cur.bump_tex, &c->cur.norm_tex, &c->cur.d_tex };
+    uint32_t *out[5] = { &c->cur.kd_tex, &c->cur.bump_tex, &c->cur.norm_tex, &c->cur.d_tex, &c->cur.ks_tex };
     *out[which] = (uint32_t)ref;
     return PF_OK;
 }
@@ -432,10 +450,10 @@ static int s_statement(void *arg, const char *kw, int kwlen, const char *p)
 #define S_KW(s) (kwlen == (int)sizeof(s) - 1 && strncasecmp(kw, s, sizeof(s) - 1) == 0)
     if (S_KW("newmtl"))
         return s_newmtl(c, p);
-    if (S_KW("map_Kd") || S_KW("map_d") || S_KW("bump") || S_KW("map_Bump") || S_KW("norm")) {
+    if (S_KW("map_Kd") || S_KW("map_d") || S_KW("bump") || S_KW("map_Bump") || S_KW("norm") || S_KW("map_Ks")) {
         if (!c->have)
             return pf_error_set(c->err, PF_EPARSE, c->path, c->line, "%.*s before any newmtl", kwlen, kw);
-        return s_map_image(c, p, S_KW("map_Kd") ? 0 : S_KW("norm") ? 2 : S_KW("map_d") ? 3 : 1);
+        return s_map_image(c, p, S_KW("map_Kd") ? 0 : S_KW("norm") ? 2 : S_KW("map_d") ? 3 : S_KW("map_Ks") ? 4 : 1);
     }
     if ((kwlen > 4 && strncasecmp(kw, "map_", 4) == 0) || S_KW("bump") || S_KW("disp") || S_KW("decal") ||
         S_KW("refl") || S_KW("norm")) {
@@ -522,7 +540,7 @@ int pf_mtl_load(pf_scene_t *scene, const char *path, pf_error_t *err)
     if (rc == PF_OK)
         rc = s_commit(&c); /* nothing reaches the scene from a file with an error */
     for (int i = 0; rc == PF_OK && i < c.nmaps; i++)
-        pf_warn("%s:%d: %s is not rendered (%u statement%s in this file; only map_Kd, bump and norm are)", path, c.maps[i].line,
+        pf_warn("%s:%d: %s is not rendered (%u statement%s in this file; only map_Kd, map_Ks, map_d, bump and norm are)", path, c.maps[i].line,
                 c.maps[i].kw, c.maps[i].count, c.maps[i].count == 1 ? "" : "s");
     free(c.done);
     fclose(f);

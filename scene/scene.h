@@ -59,7 +59,9 @@ typedef struct pf_material {
     uint32_t alpha_tex;  /* 1 + texture index: an alpha cut-out of every triangle with this material (MTL map_d;
                           * accel/alpha.c), where its mesh has none of its own; 0: opaque */
     /* Textured slots beyond kd (accel/surface.h resolves them at a hit; 0: none): */
-    uint32_t refl_tex;   /* CONDUCTOR: pbrt-v4's reflectance form, ks = the texture, eta 1, k from ks */
+    uint32_t refl_tex;   /* CONDUCTOR: pbrt-v4's reflectance form, ks = the texture, eta 1, k from ks;
+                          * DIFFUSE (a Phong lobe) and MIRROR: ks times the texture (MTL map_Ks), a
+                          * Phong ks at most 1 - kd */
     uint32_t rough_tex;  /* CONDUCTOR, COATED: roughness texture (first channel); alpha = sqrt of it when
                           * rough_remap, else the value itself, clamped to [0, 1] */
     uint32_t rough_remap;

@@ -2,7 +2,9 @@
  * (mesh uv and pbrt's default), the sRGB decoding of a known 8-bit value,
  * the wrap modes, bad image files (text named .png, a truncated PNG, a PNG
  * header claiming 100000 x 100000) giving an error that names the file and
- * the MTL line, and the scene blob round trip with a textured mesh.
+ * the MTL line, the scene blob round trip with a textured mesh, and MTL
+ * map_Ks (Phong ks and mirror reflectance times the image, held to 1 - kd;
+ * the checker's 0.716 blue against 1 - 0.6 makes the hold bite).
  * "render": a 64 x 64 checker PNG on a quad (OBJ vt + MTL map_Kd) under a
  * uniform sky renders each checker square at albedo x sky radiance, where
  * the uvs put it; the same from pbrt-v4 scenes (a PLY with u, v under a
@@ -255,6 +257,87 @@ static void s_test_bad_images(void)
     pf_scene_destroy(&sc);
 }
 
+/* MTL map_Ks: a Phong lobe's ks and a mirror's reflectance are Ks times
+ * the (sRGB) image at the hit, a Phong ks held to 1 - kd; without Ks the
+ * map alone (Ks 1); on glass a warning and nothing textured. Four quads
+ * side by side, each with uv over [0, 1]^2 (as s_obj_scene's). */
+static void s_test_map_ks(void)
+{
+    s_checker_png("checker.png");
+    s_write("ks.mtl", "newmtl phong\nKd 0.3 0.3 0.3\nKs 0.5 0.5 0.5\nNs 50\nillum 2\nmap_Ks checker.png\n"
+                      "newmtl bright\nKd 0.6 0.6 0.6\nNs 20\nillum 2\nmap_Ks checker.png\n"
+                      "newmtl mirror\nKs 0.9 0.9 0.9\nillum 3\nmap_Ks checker.png\n"
+                      "newmtl glass\nillum 7\nmap_Ks checker.png\n");
+    char obj[2048] = "mtllib ks.mtl\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n";
+    const char *names[4] = { "phong", "bright", "mirror", "glass" };
+    for (int k = 0; k < 4; k++) {
+        size_t n = strlen(obj);
+        float x = 3.0f * (float)k;
+        snprintf(obj + n, sizeof obj - n,
+                 "v %g 0 1\nv %g 0 1\nv %g 0 -1\nv %g 0 -1\nusemtl %s\nf %d/1 %d/2 %d/3 %d/4\n", x - 1, x + 1,
+                 x + 1, x - 1, names[k], 4 * k + 1, 4 * k + 2, 4 * k + 3, 4 * k + 4);
+    }
+    s_write("ks.obj", obj);
+    char p[512];
+    s_path(p, sizeof p, "ks.obj");
+    pf_scene_t *sc = pf_scene_create();
+    pf_light_t l = { .type = PF_LIGHT_POINT, .pos = { 0, 5, 0 }, .intensity = { 1, 1, 1 } };
+    pf_scene_add_light(sc, &l);
+    pf_error_t err = { { 0 } };
+    int rc = pf_obj_load(sc, p, NULL, -1, &err);
+    CHECK(rc == PF_OK, "%s", err.msg);
+    if (rc == PF_OK)
+        CHECK((rc = pf_scene_finalize(sc, &err)) == PF_OK, "finalize: %s", err.msg);
+    pf_accel_t *a = rc == PF_OK ? pf_accel_create(sc, &err) : NULL;
+    CHECK(a != NULL, "accel: %s", err.msg);
+    if (!a) {
+        pf_scene_destroy(&sc);
+        return;
+    }
+    const pf_vec3 ca = s_lin(s_ca), cb = s_lin(s_cb);
+    const float kslim[4] = { 0.5f, 1.0f, 0.9f, 0.0f }, kdv[4] = { 0.3f, 0.6f, 0.0f, 0.0f };
+    for (int k = 0; k < 4; k++) {
+        int seen[2] = { 0, 0 };
+        for (int j = 0; j < 2; j++) {
+            pf_ray_t r = { { 3.0f * (float)k - 0.5f, 1, j ? -0.5f : 0.5f }, { 0, -1, 0 } };
+            pf_hit_t h;
+            if (!pf_accel_intersect(a, &r, INFINITY, &h)) {
+                CHECK(0, "%s: the ray missed its quad", names[k]);
+                continue;
+            }
+            const pf_material_t *base = &sc->mats[h.mat];
+            pf_material_t m = pf_material_at(sc, &h);
+            CHECK(!strcmp(base->name, names[k]), "quad %d has material %s", k, base->name);
+            if (k == 3) {
+                CHECK(base->refl_tex == 0 && m.ks.x == base->ks.x && m.ks.z == base->ks.z,
+                      "glass: map_Ks must not texture it (refl_tex %u)", base->refl_tex);
+                continue;
+            }
+            CHECK(base->refl_tex != 0, "%s: map_Ks gives no texture", names[k]);
+            /* which checker colour lies under this hit: the texel, then Ks times it, then the clamp */
+            float uv[2];
+            pf_hit_uv(sc, &h, uv);
+            pf_vec3 t = pf_texture_eval(sc, base->refl_tex, uv[0], uv[1]);
+            int is_a = fabsf(t.x - ca.x) < 1e-5f && fabsf(t.z - ca.z) < 1e-5f;
+            int is_b = fabsf(t.x - cb.x) < 1e-5f && fabsf(t.z - cb.z) < 1e-5f;
+            CHECK(is_a || is_b, "%s: texel (%g %g %g) is neither checker colour", names[k], t.x, t.y, t.z);
+            seen[is_a ? 0 : 1] = 1;
+            pf_vec3 c = is_a ? ca : cb;
+            float lim = k == 2 ? INFINITY : 1.0f - kdv[k];
+            pf_vec3 want = pf_v3(fminf(kslim[k] * c.x, lim), fminf(kslim[k] * c.y, lim), fminf(kslim[k] * c.z, lim));
+            CHECK(fabsf(m.ks.x - want.x) < 1e-5f && fabsf(m.ks.y - want.y) < 1e-5f && fabsf(m.ks.z - want.z) < 1e-5f,
+                  "%s: ks (%g %g %g), expected (%g %g %g)", names[k], m.ks.x, m.ks.y, m.ks.z, want.x, want.y,
+                  want.z);
+            CHECK(fabsf(m.kd.x - kdv[k]) < 1e-6f || k == 2, "%s: kd %g, expected %g (no energy scaling)", names[k],
+                  m.kd.x, kdv[k]);
+        }
+        if (k < 3)
+            CHECK(seen[0] && seen[1], "%s: the two hits should see both checker colours", names[k]);
+    }
+    pf_accel_destroy(&a);
+    pf_scene_destroy(&sc);
+}
+
 /* The textured quad scene of the render test, from OBJ + MTL + PNG. */
 static pf_scene_t *s_obj_scene(void)
 {
@@ -468,6 +551,7 @@ int main(int argc, char **argv)
         s_test_srgb_wrap();
         s_test_bad_images();
         s_test_blob();
+        s_test_map_ks();
     } else {
         s_test_render();
     }
