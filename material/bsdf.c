@@ -34,15 +34,17 @@ pf_vec3 pf_sample_phong(float u1, float u2, float n)
     return pf_v3(r * cosf(phi), r * sinf(phi), z);
 }
 
+pf_vec3 pf_phong_eval(const pf_material_t *m, pf_vec3 n, pf_vec3 wi, pf_vec3 wo)
+{
+    if (m->type != PF_MAT_DIFFUSE || pf_is_black(m->ks) || pf_dot(n, wi) <= 0.0f || pf_dot(n, wo) <= 0.0f)
+        return pf_v3s(0.0f);
+    float c = pf_dot(pf_reflect(wi, n), wo);
+    return c > 0.0f ? pf_scale(m->ks, (m->ns + 2.0f) * (0.5f * PF_INV_PI) * powf(c, m->ns)) : pf_v3s(0.0f);
+}
+
 pf_vec3 pf_brdf_eval(const pf_material_t *m, pf_vec3 n, pf_vec3 wi, pf_vec3 wo)
 {
     if (m->type != PF_MAT_DIFFUSE || pf_dot(n, wi) <= 0.0f || pf_dot(n, wo) <= 0.0f)
         return pf_v3s(0.0f);
-    pf_vec3 f = pf_scale(m->kd, PF_INV_PI);
-    if (!pf_is_black(m->ks)) {
-        float c = pf_dot(pf_reflect(wi, n), wo);
-        if (c > 0.0f)
-            f = pf_madd(f, m->ks, (m->ns + 2.0f) * (0.5f * PF_INV_PI) * powf(c, m->ns));
-    }
-    return f;
+    return pf_add(pf_scale(m->kd, PF_INV_PI), pf_phong_eval(m, n, wi, wo));
 }

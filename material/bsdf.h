@@ -34,6 +34,16 @@ static inline float pf_phong_pdf(float cos_alpha, float n)
 /* BRDF of a DIFFUSE material (Lambert + Phong lobe) for unit wi, wo on the
  * side of unit n. Zero when either is below the surface. */
 pf_vec3 pf_brdf_eval(const pf_material_t *m, pf_vec3 n, pf_vec3 wi, pf_vec3 wo);
+/* Its Phong lobe alone, ks (ns + 2) / (2 pi) cos^ns alpha (alpha between wi
+ * and wo's mirror direction about n); zero without a lobe or below. */
+pf_vec3 pf_phong_eval(const pf_material_t *m, pf_vec3 n, pf_vec3 wi, pf_vec3 wo);
+/* The solid-angle pdf with which the lobe's sampling (pf_sample_phong about
+ * wo's mirror direction) returns wi; below the surface included, as the
+ * sampler draws there too (those samples carry nothing). */
+static inline float pf_phong_pdf_dir(const pf_material_t *m, pf_vec3 n, pf_vec3 wi, pf_vec3 wo)
+{
+    return pf_phong_pdf(pf_dot(pf_reflect(wo, n), wi), m->ns);
+}
 
 /* True when the material has a Phong lobe. */
 static inline int pf_mat_glossy(const pf_material_t *m) { return m->type == PF_MAT_DIFFUSE && !pf_is_black(m->ks); }

@@ -46,10 +46,10 @@ static int s_visible(const pf_accel_t *accel, const pf_hit_t *h, pf_vec3 wi, flo
 }
 
 /* One light connection's radiance towards wo at a non-specular hit: f cos
- * Le / pdf, zero when occluded. A rough conductor's, and a rough coat's
- * lobe, are weighted by MIS against its BSDF ray when `recurse` says that ray
- * is traced (nl light samples against one); the base is light sampling's
- * alone, and so is a delta light (pdf 0). At a diffuse point whose ng > 0
+ * Le / pdf, zero when occluded. A rough conductor's, a rough coat's lobe
+ * and a Phong lobe are weighted by MIS against its BSDF ray when `recurse`
+ * says that ray is traced (nl light samples against one); the base (the
+ * Lambertian part) is light sampling's alone, and so is a delta light (pdf 0). At a diffuse point whose ng > 0
  * cosine-distributed gather rays count the sky they see (pf_direct_sky_mis), a sky
  * sample is weighted by MIS against them. back: a diffuse transmitter's far
  * side receives the light (about -ns). */
@@ -73,6 +73,14 @@ static pf_vec3 s_connect(const pf_render_ctx_t *c, const pf_hit_t *h, const pf_m
         f = pf_brdf_eval(m, ns, lc->wi, wo);
         if (ng > 0 && isinf(lc->dist) && lc->pdf > 0.0f) /* the sky, against ng gather rays */
             w = pf_mis_power((float)nl, lc->pdf, (float)ng, cos_x * PF_INV_PI);
+        if (pf_mat_glossy(m) && mis && !pf_is_black(f)) {
+            /* The Phong lobe against the lobe's own recursive ray (the gather
+             * rays serve the Lambertian part only): each part its own weight. */
+            pf_vec3 fp = pf_phong_eval(m, ns, lc->wi, wo);
+            float wp = pf_mis_power((float)nl, lc->pdf, 1.0f, pf_phong_pdf_dir(m, ns, lc->wi, wo));
+            f = pf_add(pf_scale(m->kd, PF_INV_PI * w), pf_scale(fp, wp));
+            w = 1.0f;
+        }
         if (pf_mat_coated(m)) {
             pf_coated_f_t cf = pf_coated_eval(m, ns, wo, lc->wi);
             float wc = mis ? pf_mis_power((float)nl, lc->pdf, 1.0f, cf.coat_pdf) : 1.0f;

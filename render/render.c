@@ -46,10 +46,12 @@
  *                                      (L D E: direct) or through (S|C)+
  *                                      (L (S|C)+ D E: caustic) are not counted
  *   glossy      L ... S* G S* E        a glossy x samples its Phong lobe with one
- *                                      recursive ray; emitters that ray reaches
- *                                      directly are left to direct light, those it
- *                                      reaches through S+ are counted (the caustic
- *                                      map serves only x's diffuse part)
+ *                                      recursive ray; the emitter (or sky) that ray
+ *                                      reaches directly counts with its MIS weight
+ *                                      against x's light samples of the lobe, as the
+ *                                      conductor row's, those it reaches through S+
+ *                                      whole (the caustic map serves only x's
+ *                                      diffuse part)
  *   conductor   L ... C S* E  (C = x)  a rough conductor x: L C S* E by MIS
  *                                      (power heuristic) of light_samples light
  *                                      samples and one BSDF sample, the latter
@@ -559,7 +561,13 @@ static pf_vec3 s_radiance(s_state *st, pf_ray_t ray, int depth, pf_vec3 thr, int
             float cos_i = pf_dot(wi, ns);
             if (cos_i > 0.0f && pf_dot(wi, nf) > 0.0f) {
                 pf_vec3 wgt = pf_scale(m->ks, (m->ns + 2.0f) / (m->ns + 1.0f) * cos_i);
-                pf_vec3 li = s_radiance(st, pf_spawn_ray(&h, wi), depth + 1, pf_mul(thr, wgt), 0, 0);
+                /* an emitter (or the sky) the lobe's ray meets counts with its
+                 * MIS weight against pf_direct_light's samples of the lobe */
+                st->mis_x = h.p;
+                st->mis_n = ns;
+                st->mis_pdf = pf_phong_pdf(pf_dot(wi, r), m->ns);
+                st->mis_nl = c->settings.light_samples > 0 ? c->settings.light_samples : 1;
+                pf_vec3 li = s_radiance(st, pf_spawn_ray(&h, wi), depth + 1, pf_mul(thr, wgt), 2, 0);
                 L = pf_add(L, pf_mul(wgt, li));
             }
         }
