@@ -89,7 +89,7 @@ pf_material_t pf_material_at(const pf_scene_t *scene, const pf_hit_t *hit)
             m.kd_tex = 0;
         }
     }
-    if (!(m.kd_tex | m.refl_tex | m.rough_tex))
+    if (!(m.kd_tex | m.refl_tex | m.rough_tex | m.kt_tex))
         return m;
     float uv[2];
     pf_hit_uv(scene, hit, uv);
@@ -99,5 +99,18 @@ pf_material_t pf_material_at(const pf_scene_t *scene, const pf_hit_t *hit)
         m.kd = pf_vmin(pf_vmax(pf_texture_eval(scene, m.kd_tex, uv[0], uv[1]), pf_v3s(0.0f)), pf_v3s(1.0f));
     if (m.refl_tex | m.rough_tex)
         s_more_slots(scene, &m, uv);
+    if (m.kt_tex)
+        m.kt = pf_vmin(pf_vmax(pf_texture_eval(scene, m.kt_tex, uv[0], uv[1]), pf_v3s(0.0f)), pf_v3s(1.0f));
+    if (m.type == PF_MAT_DIFFUSE_TRANSMISSION) /* a sheet passes on no more than its reflection leaves */
+        m.kt = pf_vmin(m.kt, pf_vmax(pf_sub(pf_v3s(1.0f), m.kd), pf_v3s(0.0f)));
     return m;
+}
+
+pf_vec3 pf_hit_transmittance(const pf_scene_t *scene, const pf_hit_t *hit, pf_vec3 d)
+{
+    const pf_material_t *m = &scene->mats[hit->mat];
+    pf_vec3 sigma = pf_dot(d, hit->ng) > 0.0f ? m->sigma_in : m->sigma_out;
+    if (pf_is_black(sigma))
+        return pf_v3s(1.0f);
+    return pf_v3(expf(-sigma.x * hit->t), expf(-sigma.y * hit->t), expf(-sigma.z * hit->t));
 }

@@ -27,6 +27,18 @@ void pf_hit_uv(const pf_scene_t *scene, const pf_hit_t *hit, float uv[2]);
  * material's emission. */
 pf_material_t pf_material_at(const pf_scene_t *scene, const pf_hit_t *hit);
 
+/* The share of light that survives the medium a ray of unit direction d
+ * crossed to reach the hit, exp(-sigma hit->t) per channel: sigma is the
+ * hit material's sigma_in when the ray arrives from behind the surface
+ * (d . ng > 0), its sigma_out from the front (scene.h: the media on a
+ * surface's two sides). 1 for a clear medium. The medium of a segment is
+ * the one its far end names, so a solid whose every face carries the
+ * medium tints every ray inside it, however it bounces, without a ray
+ * tracking where it is; a segment ending at a surface that names no
+ * medium counts as clear. The hit's own material is read (hit->mat, not
+ * what a mix resolves to): a mix's medium is the mix's. */
+pf_vec3 pf_hit_transmittance(const pf_scene_t *scene, const pf_hit_t *hit, pf_vec3 d);
+
 /* The index of the material MIX material `mix` stands for at the hit (one
  * level): mix[1] with probability amount (its texture's mean channel at the
  * hit's uv when textured; <= 0 always mix[0], >= 1 always mix[1]), drawn as

@@ -37,6 +37,7 @@ static inline pf_vec3 pf_vmin(pf_vec3 a, pf_vec3 b) { return pf_v3(fminf(a.x, b.
 static inline pf_vec3 pf_vmax(pf_vec3 a, pf_vec3 b) { return pf_v3(fmaxf(a.x, b.x), fmaxf(a.y, b.y), fmaxf(a.z, b.z)); }
 static inline float pf_vget(pf_vec3 a, int axis) { return axis == 0 ? a.x : axis == 1 ? a.y : a.z; }
 static inline float pf_maxc(pf_vec3 a) { return fmaxf(a.x, fmaxf(a.y, a.z)); }
+static inline float pf_minc(pf_vec3 a) { return fminf(a.x, fminf(a.y, a.z)); }
 static inline float pf_avgc(pf_vec3 a) { return (a.x + a.y + a.z) * (1.0f / 3.0f); }
 static inline float pf_luminance(pf_vec3 a) { return 0.2126f * a.x + 0.7152f * a.y + 0.0722f * a.z; }
 static inline int pf_is_black(pf_vec3 a) { return a.x == 0.0f && a.y == 0.0f && a.z == 0.0f; }

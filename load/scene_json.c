@@ -237,7 +237,7 @@ static int s_material(s_ctx_t *c, const cJSON *m)
 {
     static const char *const keys[] = { "name", "type", "kd", "ks", "ns", "kt", "ior", "emission", "twosided",
                                         "eta", "k", "reflectance", "roughness", "thickness", "materials", "amount",
-                                        "normal_map", "bump", "bump_scale", NULL };
+                                        "normal_map", "bump", "bump_scale", "absorption", NULL };
     const char *what = "material";
     int rc = pf_json_check_object(c, m, what, keys);
     const cJSON *vname = NULL, *v;
@@ -262,7 +262,7 @@ static int s_material(s_ctx_t *c, const cJSON *m)
     const char *const *valid;
     static const char *const diffuse_keys[] = { "kd", "ks", "ns", "emission", NULL };
     static const char *const mirror_keys[] = { "ks", "emission", NULL };
-    static const char *const glass_keys[] = { "ks", "kt", "ior", "roughness", "emission", NULL };
+    static const char *const glass_keys[] = { "ks", "kt", "ior", "roughness", "absorption", "emission", NULL };
     static const char *const thin_keys[] = { "ks", "kt", "ior", "emission", NULL };
     static const char *const conductor_keys[] = { "eta", "k", "reflectance", "roughness", "emission", NULL };
     static const char *const coated_keys[] = { "kd", "ior", "roughness", "thickness", "emission", NULL };
@@ -316,6 +316,11 @@ static int s_material(s_ctx_t *c, const cJSON *m)
     if ((v = pf_json_get(m, "kt")) && (rc = pf_json_rgb(c, v, "kt", what, 0.0f, 1.0f, &mat.kt)))
         return rc;
     if ((v = pf_json_get(m, "emission")) && (rc = pf_json_rgb(c, v, "emission", what, 0.0f, FLT_MAX, &mat.le)))
+        return rc;
+    /* glass: the solid's inside absorbs (per unit length; its faces'
+     * winding says which side is inside) */
+    if ((v = pf_json_get(m, "absorption")) &&
+        (rc = pf_json_rgb(c, v, "absorption", what, 0.0f, FLT_MAX, &mat.sigma_in)))
         return rc;
     if ((v = pf_json_get(m, "ns"))) {
         if ((rc = pf_json_float(c, v, "ns", what, &mat.ns)))

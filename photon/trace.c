@@ -157,6 +157,9 @@ static int s_trace(const s_ctx *c, uint64_t seed, uint64_t index, uint64_t emitt
         pf_hit_t hit;
         if (!pf_accel_intersect(c->accel, &ray, INFINITY, &hit))
             return 0;
+        power = pf_mul(power, pf_hit_transmittance(c->scene, &hit, ray.d)); /* the medium it crossed */
+        if (pf_is_black(power))
+            return 0;
         pf_material_t mt = pf_material_at(c->scene, &hit);
         const pf_material_t *m = &mt;
         pf_shade_hit(c->scene, m, &hit, pf_neg(ray.d));

@@ -12,12 +12,13 @@
  *   u32 nmats,    nmats x   { str name, u8 type, vec3 kd, vec3 ks, f32 ns, vec3 kt, f32 ior, vec3 le,
  *                             u8 twosided, vec3 eta, vec3 k, f32 alpha, f32 thickness, u32 kd_tex, u32 mix0, u32 mix1,
  *                             f32 amount, u32 amount_tex, u32 alpha_tex, u32 refl_tex,
- *                             u32 rough_tex, u32 rough_remap, u32 normal_tex, u32 bump_tex }
+ *                             u32 rough_tex, u32 rough_remap, u32 normal_tex, u32 bump_tex, u32 kt_tex,
+ *                             vec3 sigma_in, vec3 sigma_out }
  *                             (version 4: eta, k, alpha; version 5: type 4, the thin dielectric; version
  *                             7: type 5, the coated diffuse, thickness and kd_tex; version 9: types 6 and
  *                             7, diffuse transmission and mix, and after kd_tex: u32 mix0, u32 mix1, f32
  *                             amount, u32 amount_tex, u32 alpha_tex, then refl_tex to bump_tex; version 12:
- *                             twosided)
+ *                             twosided; version 13: kt_tex and the absorbing media, sigma_in and sigma_out)
  *   u32 nmeshes,  nmeshes x { str name, u64 nverts, u64 ntris, u8 has_normals, u8 has_uv, u32 alpha_tex,
  *                             nverts x vec3 pos, (has_normals) nverts x vec3 nrm,
  *                             (has_uv) nverts x 2 f32 uv, ntris x 3 u32 idx, ntris x u32 mat }
@@ -56,7 +57,7 @@
 #define S_WHERE "scene blob"
 
 /* The smallest encoded size of each repeated item, for the count checks. */
-#define S_MIN_MATERIAL (2 + 1 + 23 * 4 + 4 + 5 * 4 + 1)
+#define S_MIN_MATERIAL (2 + 1 + 23 * 4 + 4 + 5 * 4 + 1 + 4 + 6 * 4)
 #define S_MIN_MESH (2 + 8 + 8 + 2 + 4)
 #define S_MIN_TEXTURE (2 + 1 + 4 * 4 + 3 * 16 + 2 + 4 + 2 + 8)
 #define S_VERTEX 12
@@ -173,6 +174,9 @@ int pf_sceneblob_write(const pf_scene_t *scene, pf_buf_t *out)
         W(pf_wr_u32(out, m->rough_remap));
         W(pf_wr_u32(out, m->normal_tex));
         W(pf_wr_u32(out, m->bump_tex));
+        W(pf_wr_u32(out, m->kt_tex));
+        W(s_wr_vec3(out, m->sigma_in));
+        W(s_wr_vec3(out, m->sigma_out));
     }
 
     W(pf_wr_u32(out, (uint32_t)scene->nmeshes));
@@ -416,6 +420,9 @@ static void s_read_materials(s_in_t *in, pf_scene_t *scene)
         m.rough_remap = s_u32(in, what, "rough_remap") != 0;
         m.normal_tex = s_u32(in, what, "normal_tex");
         m.bump_tex = s_u32(in, what, "bump_tex");
+        m.kt_tex = s_u32(in, what, "kt_tex"); /* by finalize, with the media's signs */
+        m.sigma_in = s_vec3(in, what, "sigma_in");
+        m.sigma_out = s_vec3(in, what, "sigma_out");
         if (!in->status && m.type == PF_MAT_CONDUCTOR &&
             !(m.eta.x > 0.0f && m.eta.y > 0.0f && m.eta.z > 0.0f && m.k.x >= 0.0f && m.k.y >= 0.0f &&
               m.k.z >= 0.0f && m.alpha >= 0.0f && m.alpha <= 1.0f))

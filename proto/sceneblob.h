@@ -24,7 +24,7 @@
  * has_window, window and frame_aspect (after focal_distance); 12: materials
  * gained twosided (u8 after le), emission on both sides. Older blobs are
  * refused. */
-#define PF_SCENEBLOB_VERSION 12
+#define PF_SCENEBLOB_VERSION 13
 
 /* Serializes a finalized scene into out (reset first). 0 or PF_ENOMEM. */
 int pf_sceneblob_write(const pf_scene_t *scene, pf_buf_t *out);

@@ -217,6 +217,7 @@ static void s_gather_trace(s_state *st, pf_ray_t ray, s_gather_end *end)
                 end->value = pf_direct_gather_sky(c, st->sky_ns, st->sky_ng, ray.d);
             return;
         }
+        thr = pf_mul(thr, pf_hit_transmittance(c->scene, &h, ray.d));
         pf_material_t mt = pf_material_at(c->scene, &h);
         const pf_material_t *m = &mt;
         pf_shade_hit(c->scene, m, &h, pf_neg(ray.d));
@@ -499,12 +500,25 @@ static pf_vec3 s_transmitted(s_state *st, const pf_hit_t *h, const pf_material_t
  * emitter hit here counts (see the table above): 0 no, 1 yes, 2 with the MIS
  * weight of a rough conductor's BSDF sample (st->mis_*); primary, whether
  * the path has met only mirrors so far (its first gather may be filtered). */
+static pf_vec3 s_radiance_at(s_state *st, pf_ray_t ray, pf_hit_t h, int depth, pf_vec3 thr, int count_le,
+                             int primary);
+
 static pf_vec3 s_radiance(s_state *st, pf_ray_t ray, int depth, pf_vec3 thr, int count_le, int primary)
 {
-    const pf_render_ctx_t *c = st->ctx;
     pf_hit_t h;
-    if (!pf_accel_intersect(c->accel, &ray, INFINITY, &h)) /* the sky, counted as an emitter's front */
+    if (!pf_accel_intersect(st->ctx->accel, &ray, INFINITY, &h)) /* the sky, counted as an emitter's front */
         return s_sky(st, ray.d, count_le);
+    pf_vec3 tr = pf_hit_transmittance(st->ctx->scene, &h, ray.d); /* the medium the ray crossed */
+    if (tr.x == 1.0f && tr.y == 1.0f && tr.z == 1.0f)
+        return s_radiance_at(st, ray, h, depth, thr, count_le, primary);
+    return pf_mul(tr, s_radiance_at(st, ray, h, depth, pf_mul(thr, tr), count_le, primary));
+}
+
+/* s_radiance from the ray's hit h on. */
+static pf_vec3 s_radiance_at(s_state *st, pf_ray_t ray, pf_hit_t h, int depth, pf_vec3 thr, int count_le,
+                             int primary)
+{
+    const pf_render_ctx_t *c = st->ctx;
     pf_material_t mt = pf_material_at(c->scene, &h);
     const pf_material_t *m = &mt;
     pf_shade_hit(c->scene, m, &h, pf_neg(ray.d));

@@ -302,7 +302,7 @@ static int s_mat_finite(const pf_material_t *m)
 {
     return pf_is_finite3(m->kd) && pf_is_finite3(m->ks) && pf_is_finite3(m->kt) && pf_is_finite3(m->le) &&
            isfinite(m->ns) && isfinite(m->ior) && pf_is_finite3(m->eta) && pf_is_finite3(m->k) && isfinite(m->alpha) &&
-           isfinite(m->thickness) && isfinite(m->amount);
+           isfinite(m->thickness) && isfinite(m->amount) && pf_is_finite3(m->sigma_in) && pf_is_finite3(m->sigma_out);
 }
 
 /* Checks a MIX material's two indices and that following mixes from it
@@ -411,8 +411,9 @@ static int s_check_textures(pf_scene_t *self, pf_error_t *err)
     }
     for (size_t i = 0; i < self->nmats; i++) {
         const pf_material_t *m = &self->mats[i];
-        uint32_t refs[7] = { m->kd_tex, m->refl_tex, m->rough_tex, m->normal_tex, m->bump_tex, m->amount_tex, m->alpha_tex };
-        for (int k = 0; k < 7; k++)
+        uint32_t refs[8] = { m->kd_tex,     m->refl_tex,   m->rough_tex, m->normal_tex,
+                             m->bump_tex,   m->amount_tex, m->alpha_tex, m->kt_tex };
+        for (int k = 0; k < 8; k++)
             if (refs[k] > self->ntexs)
                 return pf_error_set(err, PF_EPARSE, file, 0, "material '%s': texture %u out of range (%zu textures)",
                                     m->name, (unsigned)refs[k], self->ntexs);
@@ -524,6 +525,9 @@ int pf_scene_finalize(pf_scene_t *self, pf_error_t *err)
             return pf_error_set(err, PF_EPARSE, file, 0, "material '%s': unknown type %d", m->name, (int)m->type);
         if (m->twosided > 1)
             return pf_error_set(err, PF_EPARSE, file, 0, "material '%s': twosided must be 0 or 1", m->name);
+        if (pf_minc(m->sigma_in) < 0.0f || pf_minc(m->sigma_out) < 0.0f)
+            return pf_error_set(err, PF_EPARSE, file, 0, "material '%s': a medium's absorption must be >= 0",
+                                m->name);
     }
     int trc = s_check_textures(self, err);
     if (trc)

@@ -67,6 +67,17 @@ typedef struct pf_material {
     uint32_t rough_remap;
     uint32_t normal_tex; /* tangent-space normal map (linear RGB, n = 2 c - 1 in the (dpdu, n x dpdu, n) frame) */
     uint32_t bump_tex;   /* displacement (first channel, world units): bump mapping (accel/shading.h) */
+    uint32_t kt_tex;     /* DIFFUSE_TRANSMISSION: kt is that texture at the hit's uv, clamped to [0, 1]; a
+                          * textured sheet's kt is held to at most 1 - kd at each hit (it passes on no more
+                          * than it receives) */
+    /* The media on the surface's two sides, absorbing only (Beer-Lambert;
+     * pbrt-v4's MediumInterface "inside" "outside" without the scattering):
+     * absorption coefficients per world unit, 0 a clear medium. A ray that
+     * reaches the surface from behind (against ng) has crossed sigma_in on
+     * its way, from the front sigma_out (accel/surface.h,
+     * pf_hit_transmittance), so a closed glass solid with sigma_in tints
+     * the light by exp(-sigma_in d) over the length d it runs inside. */
+    pf_vec3 sigma_in, sigma_out;
 } pf_material_t;
 
 /* pbrt-v4's "reflectance" form of a conductor: eta = 1 and this k, which

@@ -422,6 +422,8 @@ static int s_camera(pf_pbrt_t *c, pf_pbrt_loc_t loc)
     if (rc == PF_OK) {
         memcpy(c->camera_from_world, c->gs.ctm, sizeof inv);
         c->have_camera = 1;
+        c->camera_medium = c->gs.medium_out; /* pbrt's camera medium */
+        c->camera_loc = loc;
         rc = s_name_coordsys(c, loc, "camera", inv);
     }
     if (rc == PF_OK)
@@ -542,8 +544,6 @@ static const struct {
     { "ColorSpace", 1, 0, 0, "colours are read as linear sRGB" },
     { "Option", 0, 1, 0, "pbrt's options do not apply" },
     { "Attribute", 1, 1, 0, "default parameters of shapes, lights and materials are not applied" },
-    { "MakeNamedMedium", 1, 1, 0, "participating media are not rendered" },
-    { "MediumInterface", -1, 0, 0, "participating media are not rendered" },
     { "Accelerator", 1, 1, 1, "Embree builds its own" },
     { "TransformTimes", 0, 0, 1, "motion blur is not rendered" },
     { "ActiveTransform", 0, 0, 0, "motion blur is not rendered (the start time's transform is used)" },
@@ -617,6 +617,35 @@ static int s_material(pf_pbrt_t *c, pf_pbrt_loc_t loc)
         rc = pf_pbrt_material(c, NULL, type, &ps, loc);
     free(type);
     pf_pbrt_params_free(&ps);
+    return rc;
+}
+
+static int s_make_named_medium(pf_pbrt_t *c, pf_pbrt_loc_t loc)
+{
+    char *name = NULL;
+    pf_pbrt_params_t ps;
+    int rc = s_type_params(c, "MakeNamedMedium", &name, &ps);
+    if (rc == PF_OK)
+        rc = pf_pbrt_medium(c, name, &ps, loc);
+    free(name);
+    pf_pbrt_params_free(&ps);
+    return rc;
+}
+
+/* MediumInterface "inside" ["outside"]: one name stands for both sides. */
+static int s_medium_interface(pf_pbrt_t *c, pf_pbrt_loc_t loc)
+{
+    char *in = NULL, *out = NULL;
+    pf_pbrt_tok_t t;
+    int rc = s_string_arg(c, "MediumInterface", &in);
+    if (rc == PF_OK)
+        rc = pf_pbrt_peek(c, &t);
+    if (rc == PF_OK && t.kind == PF_PBRT_STRING)
+        rc = s_string_arg(c, "MediumInterface", &out);
+    if (rc == PF_OK)
+        rc = pf_pbrt_medium_interface(c, in, out ? out : in, loc);
+    free(in);
+    free(out);
     return rc;
 }
 
@@ -709,6 +738,8 @@ static const struct {
     { "Texture", s_texture, S_WORLD },           { "LightSource", s_light, S_WORLD },
     { "AreaLightSource", s_area, S_WORLD },      { "Shape", s_shape, S_WORLD },
     { "Include", s_include, S_ANY },             { "Import", s_include, S_ANY },
+    { "MakeNamedMedium", s_make_named_medium, S_ANY },
+    { "MediumInterface", s_medium_interface, S_ANY },
 };
 
 /* Runs the directive of word token t. */
@@ -816,6 +847,8 @@ static void s_free(pf_pbrt_t *c)
     free(c->named_obj);
     free(c->named_warn);
     free(c->named_pair);
+    free(c->named_medium);
+    free(c->media);
     for (size_t i = 0; i < c->nmats; i++) {
         free(c->mats[i].type);
         pf_pbrt_params_free(&c->mats[i].params);
@@ -852,6 +885,7 @@ int pf_pbrt_load(pf_scene_t *scene, const char *path, const pf_load_opts_t *opts
         memset(c.report, 0, sizeof *c.report);
     c.cur_object = -1;
     c.gs.area = -1;
+    c.gs.medium_in = c.gs.medium_out = c.camera_medium = -1;
     pf_pbrt_m4_identity(c.gs.ctm);
     /* pbrt's defaults where the file says nothing. */
     scene->settings.width = 1280;
@@ -870,6 +904,8 @@ int pf_pbrt_load(pf_scene_t *scene, const char *path, const pf_load_opts_t *opts
     }
     if (rc == PF_OK)
         rc = s_parse(&c);
+    if (rc == PF_OK)
+        rc = pf_pbrt_camera_medium(&c);
     if (rc == PF_OK)
         rc = pf_pbrt_emit_materials(&c);
     if (rc == PF_OK)

@@ -114,6 +114,8 @@ typedef struct pf_pbrt_gstate {
     int mat;       /* name id or material record */
     pf_pbrt_loc_t mat_loc; /* the NamedMaterial/Material directive */
     int area;      /* area light record, or -1 */
+    int medium_in, medium_out; /* MediumInterface's media (name ids; -1: none, pbrt's "") */
+    pf_pbrt_loc_t medium_loc;  /* the MediumInterface in effect */
     char kind;     /* on the stack: 'A' AttributeBegin, 'T' TransformBegin, 'O' ObjectBegin */
     pf_pbrt_loc_t begin;
 } pf_pbrt_gstate_t;
@@ -148,9 +150,18 @@ typedef struct pf_pbrt_area {
     pf_pbrt_loc_t loc;
 } pf_pbrt_area_t;
 
-/* A distinct (material, area light, emission) pair; one scene material each. */
+/* A MakeNamedMedium: what photonfarm renders of it, its absorption
+ * (pbrt_medium.c). */
+typedef struct pf_pbrt_medium {
+    pf_vec3 sigma_a; /* sigma_a times scale, per world unit; 0 for a medium not rendered */
+    pf_pbrt_loc_t loc;
+} pf_pbrt_medium_t;
+
+/* A distinct (material, area light, emission, media) pair; one scene material each. */
 typedef struct pf_pbrt_pair {
     int mat_kind, mat, area;
+    int medium_in, medium_out; /* name ids, -1 none */
+    pf_pbrt_loc_t medium_loc;
     pf_vec3 le;
     pf_pbrt_loc_t loc;     /* the first shape */
     pf_pbrt_loc_t mat_loc; /* the NamedMaterial or Material in effect */
@@ -224,6 +235,7 @@ typedef struct pf_pbrt {
     int32_t *named_obj;  /* name id -> object, -1 */
     int32_t *named_warn; /* name id (of a warning kind) -> warning, -1 */
     int32_t *named_pair; /* name id (of a pair's key) -> pair, -1 */
+    int32_t *named_medium; /* name id -> medium record, -1 */
     size_t cap_named;    /* entries in each named_* array */
     pf_pbrt_mat_t *mats;
     size_t nmats, cap_mats;
@@ -233,6 +245,10 @@ typedef struct pf_pbrt {
     size_t nareas, cap_areas;
     pf_pbrt_pair_t *pairs;
     size_t npairs, cap_pairs;
+    pf_pbrt_medium_t *media;
+    size_t nmedia, cap_media;
+    int camera_medium;       /* the outside medium at Camera (pbrt's camera medium), name id or -1 */
+    pf_pbrt_loc_t camera_loc;
     pf_pbrt_object_t *objects;
     size_t nobjects, cap_objects;
     int cur_object; /* the ObjectBegin being defined, or -1 */
@@ -334,6 +350,19 @@ void pf_pbrt_m4_identity(pf_pbrt_m4 m);
 /* Prints one line per warning kind (pf_warn) and fills c->report. */
 void pf_pbrt_report(pf_pbrt_t *c);
 
+/* ---- pbrt_medium.c ---- */
+
+/* MakeNamedMedium name (type and parameters in ps): records its absorption
+ * and reports what of it is not rendered. */
+int pf_pbrt_medium(pf_pbrt_t *c, const char *name, pf_pbrt_params_t *ps, pf_pbrt_loc_t loc);
+/* MediumInterface inside outside ("" none): the media of the shapes that follow. */
+int pf_pbrt_medium_interface(pf_pbrt_t *c, const char *inside, const char *outside, pf_pbrt_loc_t loc);
+/* The absorption of medium name id (-1: none, 0) into *sigma; an undefined
+ * name is an error at loc, the MediumInterface that named it. */
+int pf_pbrt_medium_sigma(pf_pbrt_t *c, int id, pf_pbrt_loc_t loc, pf_vec3 *sigma);
+/* After the parse: reports a camera inside an absorbing medium. */
+int pf_pbrt_camera_medium(pf_pbrt_t *c);
+
 /* ---- pbrt_shape.c ---- */
 
 int pf_pbrt_shape(pf_pbrt_t *c, const char *type, pf_pbrt_params_t *ps, pf_pbrt_loc_t loc);
@@ -359,6 +388,9 @@ int pf_pbrt_material(pf_pbrt_t *c, const char *name, const char *type, pf_pbrt_p
  * (the caller reads the constant) or of a class not rendered (the caller
  * warns and uses its default). */
 int pf_pbrt_color_texture(pf_pbrt_t *c, pf_pbrt_param_t *p, uint32_t *ref);
+/* Texture ref times k: *out a new scale texture of it, or ref itself when k
+ * is 1 or ref is 0 (none). */
+int pf_pbrt_scaled_texture(pf_pbrt_t *c, uint32_t ref, double k, pf_pbrt_loc_t loc, uint32_t *out);
 /* A float texture parameter p as a scene texture ref in *ref (constants
  * too); 0 when its class is not rendered. p is marked used when made. */
 int pf_pbrt_float_texture(pf_pbrt_t *c, pf_pbrt_param_t *p, uint32_t *ref);

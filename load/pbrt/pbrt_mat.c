@@ -382,28 +382,42 @@ static int s_dielectric(pf_pbrt_t *c, pf_pbrt_mat_t *m, const char *what, int th
     return PF_OK;
 }
 
+/* A diffusetransmission colour, "reflectance" or "transmittance": its
+ * texture (times scale) into *tex, else its value (default 0.25) into *v. */
+static int s_difftrans_slot(pf_pbrt_t *c, pf_pbrt_mat_t *m, const char *name, double scale, const char *what,
+                            pf_vec3 *v, uint32_t *tex)
+{
+    pf_pbrt_param_t *p = pf_pbrt_param(&m->params, name);
+    uint32_t ref = 0;
+    int rc = PF_OK;
+    if (p && p->type == PF_PBRT_P_TEXTURE)
+        rc = pf_pbrt_color_texture(c, p, &ref);
+    if (rc == PF_OK && ref) {
+        *v = pf_v3s(0.0f); /* the texture stands for it */
+        return pf_pbrt_scaled_texture(c, ref, scale, p->loc, tex);
+    }
+    if (rc == PF_OK)
+        rc = pf_pbrt_get_color(c, &m->params, name, PF_PBRT_ALBEDO, pf_v3s(0.25f), what, v, NULL);
+    *v = pf_scale(*v, (float)scale);
+    return rc;
+}
+
 static int s_difftrans(pf_pbrt_t *c, pf_pbrt_mat_t *m, const char *what)
 {
     double scale;
-    pf_pbrt_param_t *p = pf_pbrt_param(&m->params, "reflectance");
-    int rc = PF_OK;
-    if (p && p->type == PF_PBRT_P_TEXTURE)
-        rc = pf_pbrt_color_texture(c, p, &m->m.kd_tex);
-    if (rc == PF_OK && !m->m.kd_tex)
-        rc = pf_pbrt_get_color(c, &m->params, "reflectance", PF_PBRT_ALBEDO, pf_v3s(0.25f), what, &m->m.kd, NULL);
+    int rc = pf_pbrt_get_float(c, &m->params, "scale", 1.0, &scale);
+    scale = fmax(scale, 0.0);
     if (rc == PF_OK)
-        rc = pf_pbrt_get_color(c, &m->params, "transmittance", PF_PBRT_ALBEDO, pf_v3s(0.25f), what, &m->m.kt, NULL);
+        rc = s_difftrans_slot(c, m, "reflectance", scale, what, &m->m.kd, &m->m.kd_tex);
     if (rc == PF_OK)
-        rc = pf_pbrt_get_float(c, &m->params, "scale", 1.0, &scale);
+        rc = s_difftrans_slot(c, m, "transmittance", scale, what, &m->m.kt, &m->m.kt_tex);
     if (rc)
         return rc;
     m->m.type = PF_MAT_DIFFUSE_TRANSMISSION;
-    m->m.kd = pf_scale(m->m.kd, (float)fmax(scale, 0.0));
-    m->m.kt = pf_scale(m->m.kt, (float)fmax(scale, 0.0));
-    float sum = pf_maxc(pf_add(m->m.kd_tex ? pf_v3s(0.0f) : m->m.kd, m->m.kt));
-    if (m->m.kd_tex)
-        m->m.kt = pf_scale(m->m.kt, sum > 1.0f ? 1.0f / sum : 1.0f); /* a textured kd is clamped at the hit */
-    else if (sum > 1.0f) {
+    /* With a texture, kt is held to at most 1 - kd at each hit
+     * (accel/surface.c); constants are scaled here to sum to at most 1. */
+    float sum = pf_maxc(pf_add(m->m.kd, m->m.kt));
+    if (sum > 1.0f) {
         m->m.kd = pf_scale(m->m.kd, 1.0f / sum);
         m->m.kt = pf_scale(m->m.kt, 1.0f / sum);
     }
@@ -730,9 +744,9 @@ int pf_pbrt_light(pf_pbrt_t *c, const char *type, pf_pbrt_params_t *ps, pf_pbrt_
 
 int pf_pbrt_pair(pf_pbrt_t *c, int area, pf_vec3 le, pf_pbrt_loc_t loc)
 {
-    char key[160];
-    snprintf(key, sizeof key, "%d:%d:%d:%a:%a:%a", c->gs.mat_kind, c->gs.mat, area, (double)le.x, (double)le.y,
-             (double)le.z);
+    char key[192];
+    snprintf(key, sizeof key, "%d:%d:%d:%a:%a:%a:%d:%d", c->gs.mat_kind, c->gs.mat, area, (double)le.x,
+             (double)le.y, (double)le.z, c->gs.medium_in, c->gs.medium_out);
     int id = pf_pbrt_intern(c, key);
     if (id < 0)
         return pf_pbrt_error(c, PF_ENOMEM, loc, "out of memory");
@@ -742,7 +756,9 @@ int pf_pbrt_pair(pf_pbrt_t *c, int area, pf_vec3 le, pf_pbrt_loc_t loc)
     if (c->npairs >= INT32_MAX / 2 || pf_reserve((void **)&c->pairs, &c->cap_pairs, c->npairs + 1, sizeof *c->pairs))
         return pf_pbrt_error(c, PF_ENOMEM, loc, "out of memory");
     c->pairs[c->npairs] = (pf_pbrt_pair_t){ .mat_kind = c->gs.mat_kind, .mat = c->gs.mat, .area = area, .le = le,
-                                            .loc = loc, .mat_loc = c->gs.mat_loc, .out = -1 };
+                                            .medium_in = c->gs.medium_in, .medium_out = c->gs.medium_out,
+                                            .medium_loc = c->gs.medium_loc, .loc = loc, .mat_loc = c->gs.mat_loc,
+                                            .out = -1 };
     *slot = (int32_t)c->npairs;
     return (int)c->npairs++;
 }
@@ -768,6 +784,9 @@ static int s_emit_pair(pf_pbrt_t *c, pf_pbrt_pair_t *p, size_t index)
     }
     m.le = p->le;
     m.twosided = p->area >= 0 && !pf_is_black(p->le) && c->areas[p->area].twosided;
+    if ((rc = pf_pbrt_medium_sigma(c, p->medium_in, p->medium_loc, &m.sigma_in)) ||
+        (rc = pf_pbrt_medium_sigma(c, p->medium_out, p->medium_loc, &m.sigma_out)))
+        return rc;
     if (!pf_is_black(p->le)) {
         char base[PF_NAME_MAX], suffix[32];
         snprintf(base, sizeof base, "%s", m.name);

@@ -269,3 +269,19 @@ int pf_pbrt_float_texture(pf_pbrt_t *c, pf_pbrt_param_t *p, uint32_t *ref)
         p->used = 1;
     return rc;
 }
+
+int pf_pbrt_scaled_texture(pf_pbrt_t *c, uint32_t ref, double k, pf_pbrt_loc_t loc, uint32_t *out)
+{
+    *out = ref;
+    if (!ref || k == 1.0)
+        return PF_OK;
+    pf_texture_t x = pf_texture_constant("scaled", pf_v3s(1.0f));
+    x.type = PF_TEX_SCALE;
+    x.op[0] = (pf_tex_operand_t){ pf_v3s(1.0f), ref };
+    x.op[1] = (pf_tex_operand_t){ pf_v3s((float)k), 0 };
+    int r = pf_scene_add_texture(c->scene, &x);
+    if (r < 0)
+        return pf_pbrt_error(c, PF_ENOMEM, loc, "out of memory");
+    *out = (uint32_t)r;
+    return PF_OK;
+}

@@ -65,7 +65,8 @@ static int s_named_grow(pf_pbrt_t *c, size_t n)
     size_t cap = c->cap_named ? 2 * c->cap_named : 64;
     while (cap < n)
         cap *= 2;
-    int32_t **tabs[] = { &c->named_mat, &c->named_ftex, &c->named_stex, &c->named_obj, &c->named_warn, &c->named_pair };
+    int32_t **tabs[] = { &c->named_mat, &c->named_ftex, &c->named_stex, &c->named_obj, &c->named_warn, &c->named_pair,
+                         &c->named_medium };
     for (size_t t = 0; t < sizeof tabs / sizeof *tabs; t++) {
         int32_t *p = realloc(*tabs[t], cap * sizeof *p);
         if (!p)

@@ -22,48 +22,7 @@
 #include "load/load.h"
 #include "scene/scene.h"
 
-static char s_dir[256];
-
-/* Writes text to <s_dir>/name; returns the path (static buffer per slot). */
-static const char *s_write(const char *name, const char *text)
-{
-    static char paths[8][512];
-    static int slot;
-    char *p = paths[slot++ % 8];
-    snprintf(p, 512, "%s/%s", s_dir, name);
-    FILE *f = fopen(p, "wb");
-    CHECK(f != NULL, "cannot write %s", p);
-    if (f) {
-        fputs(text, f);
-        fclose(f);
-    }
-    return p;
-}
-
-/* The scene of text (parsed, not finalized); NULL with err filled. */
-static pf_scene_t *s_parse(const char *text, int strict, pf_load_report_t *rep, pf_error_t *err)
-{
-    const char *path = s_write("scene.pbrt", text);
-    pf_scene_t *s = pf_scene_create();
-    pf_load_opts_t o = { .strict = strict, .report = rep };
-    err->msg[0] = '\0';
-    if (pf_pbrt_load(s, path, &o, err) != PF_OK)
-        pf_scene_destroy(&s);
-    return s;
-}
-
-/* Occurrences of warnings whose kind starts with prefix. */
-static unsigned s_warned(const pf_load_report_t *r, const char *prefix)
-{
-    unsigned n = 0;
-    for (size_t i = 0; i < r->nwarnings; i++)
-        if (strncmp(r->warnings[i].kind, prefix, strlen(prefix)) == 0)
-            n += r->warnings[i].count;
-    return n;
-}
-
-static int s_near(float a, float b) { return fabsf(a - b) <= 1e-5f * (1.0f + fabsf(b)); }
-static int s_vnear(pf_vec3 a, float x, float y, float z) { return s_near(a.x, x) && s_near(a.y, y) && s_near(a.z, z); }
+#include "pbrt_text.h"
 
 /* The side a triangle emits to, as light.c decides it. */
 static pf_vec3 s_emit_normal(const pf_mesh_t *m, size_t t)
@@ -75,8 +34,6 @@ static pf_vec3 s_emit_normal(const pf_mesh_t *m, size_t t)
     return n;
 }
 
-#define S_HEAD "LookAt 0 0 5  0 0 0  0 1 0\nCamera \"perspective\" \"float fov\" 45\nWorldBegin\n"
-#define S_TRI "Shape \"trianglemesh\" \"point3 P\" [1 2 3  0 0 0  1 0 0] \"integer indices\" [0 1 2]\n"
 
 /* One transform case: directives before the triangle, where (1,2,3) lands. */
 static void s_xf(const char *directives, float x, float y, float z)
@@ -576,12 +533,12 @@ static void test_report(void)
     CHECK(s != NULL, "%s", err.msg);
     const char *kinds[] = { "Sampler (ignored)", "PixelFilter gaussian (approximated)", "ColorSpace (ignored)",
                             "Option (ignored)",
-                            "Attribute (ignored)", "MakeNamedMedium (ignored)", "MediumInterface (ignored)",
+                            "Attribute (ignored)", "medium scattering (ignored)",
                             "alpha on a sphere (opaque)", "displacement texture (ignored)" };
     for (size_t i = 0; i < sizeof kinds / sizeof *kinds; i++)
         CHECK(s_warned(&rep, kinds[i]) == 1, "%s", kinds[i]);
     CHECK(s_warned(&rep, "unused parameter \"float foo\"") == 2, "one kind per name, counted");
-    CHECK(rep.nwarnings == 10, "%zu kinds", rep.nwarnings);
+    CHECK(rep.nwarnings == 9, "%zu kinds", rep.nwarnings);
     int first = -1;
     for (size_t i = 0; i < rep.nwarnings; i++)
         if (!strcmp(rep.warnings[i].kind, "unused parameter \"float foo\""))
@@ -939,11 +896,8 @@ static void test_alloc_failures(void)
 int main(void)
 {
     pf_log_set_level(PF_LOG_ERROR);
-    snprintf(s_dir, sizeof s_dir, "/tmp/pf-test-pbrt-XXXXXX");
-    if (!mkdtemp(s_dir)) {
-        perror("mkdtemp");
+    if (!pf_pbrt_text_dir())
         return 1;
-    }
     test_transforms();
     test_winding();
     test_shapes();
@@ -959,9 +913,6 @@ int main(void)
     test_camera();
     test_bitterli();
     test_alloc_failures();
-    char cmd[512];
-    snprintf(cmd, sizeof cmd, "rm -rf '%s'", s_dir);
-    if (system(cmd) != 0)
-        fprintf(stderr, "could not remove %s\n", s_dir);
+    pf_pbrt_text_dir_remove();
     return pf_test_finish();
 }

@@ -574,6 +574,20 @@ static void test_thin_dielectric(void)
     sc = s_json_text("{ \"materials\": [ { \"name\": \"w\", \"type\": \"thindielectric\", \"kd\": 0.5 } ] }\n", &err);
     CHECK(!sc && strstr(err.msg, "key 'kd' does not apply to a thindielectric material"), "kd on a pane: %s", err.msg);
     pf_scene_destroy(&sc);
+    /* a glass solid's absorbing inside: "absorption" per unit length, on glass only */
+    sc = s_json_text("{ \"materials\": [ { \"name\": \"tea\", \"type\": \"glass\", \"ior\": 1.33,\n"
+                     "  \"absorption\": [0.1, 0.3, 0.7] } ] }\n",
+                     &err);
+    CHECK(sc && sc->nmats == 1 && near3(sc->mats[0].sigma_in, pf_v3(0.1f, 0.3f, 0.7f), 0) &&
+              pf_is_black(sc->mats[0].sigma_out),
+          "absorption: %s", sc ? "" : err.msg);
+    pf_scene_destroy(&sc);
+    sc = s_json_text("{ \"materials\": [ { \"name\": \"w\", \"type\": \"thindielectric\", \"absorption\": 1 } ] }\n",
+                     &err);
+    CHECK(!sc && strstr(err.msg, "key 'absorption' does not apply to a thindielectric material"), "%s", err.msg);
+    sc = s_json_text("{ \"materials\": [ { \"name\": \"g\", \"type\": \"glass\", \"absorption\": [1, -1, 1] } ] }\n",
+                     &err);
+    CHECK(!sc && strstr(err.msg, "absorption"), "a negative absorption: %s", err.msg);
 }
 
 /* The coated diffuse: kd, ior, roughness, thickness (default 0: lossless);

@@ -86,6 +86,8 @@ static pf_scene_t *s_tiny_scene(void)
     m.ks = pf_v3s(1.0f);
     m.kt = pf_v3(0.9f, 0.95f, 1.0f);
     m.ior = 1.45f;
+    m.sigma_in = pf_v3(0.5f, 1.0f, 2.0f); /* version 13: the media on its two sides */
+    m.sigma_out = pf_v3(0.0f, 0.125f, 0.0f);
     pf_scene_add_material(s, &m);
     m = pf_material_default("phong");
     m.ks = pf_v3s(0.1f);
@@ -334,8 +336,9 @@ static s_offsets_t s_walk(const uint8_t *d)
             o.mat4_eta = at + 1 + 56 + 1;
         if (i == 7)
             o.mat7_mix0 = at + 1 + 56 + 1 + 28 + 4 + 4; /* after kd_tex */
-        at += 1 + 56 + 1 + 36 + 20 + 20; /* version 12: twosided after le; and version 9: mix0, mix1, amount, amount_tex, alpha_tex, then refl_tex,
-                                      * rough_tex, rough_remap, normal_tex, bump_tex */
+        at += 1 + 56 + 1 + 36 + 20 + 20 + 4 + 24; /* version 12: twosided after le; version 9: mix0, mix1, amount,
+                                                * amount_tex, alpha_tex, then refl_tex, rough_tex, rough_remap,
+                                                * normal_tex, bump_tex; version 13: kt_tex, sigma_in, sigma_out */
     }
     o.nmeshes = at;
     uint32_t nmesh = d[at];
@@ -418,16 +421,17 @@ static void test_scene_blob(void)
 
     const s_spatch_t patches[] = {
         { 0, 1, 'X', 0, "bad magic", "magic" },
-        { 4, 2, 13, 0, "format version 13", "version" },
-        { 4, 2, 2, 0, "format version 2, this build reads 12", "version 2 (before the lens)" },
-        { 4, 2, 3, 0, "format version 3, this build reads 12", "version 3 (before the conductor)" },
-        { 4, 2, 4, 0, "format version 4, this build reads 12", "version 4 (before the thin dielectric)" },
-        { 4, 2, 5, 0, "format version 5, this build reads 12", "version 5 (before the distant light)" },
-        { 4, 2, 6, 0, "format version 6, this build reads 12", "version 6 (before the coat and the textures)" },
-        { 4, 2, 7, 0, "format version 7, this build reads 12", "version 7 (before the environment maps)" },
-        { 4, 2, 8, 0, "format version 8, this build reads 12", "version 8 (before mix, diffuse transmission, maps and the path-length limit)" },
-        { 4, 2, 10, 0, "format version 10, this build reads 12", "version 10 (before the screen window)" },
-        { 4, 2, 11, 0, "format version 11, this build reads 12", "version 11 (before two-sided emission)" },
+        { 4, 2, 14, 0, "format version 14", "version" },
+        { 4, 2, 2, 0, "format version 2, this build reads 13", "version 2 (before the lens)" },
+        { 4, 2, 3, 0, "format version 3, this build reads 13", "version 3 (before the conductor)" },
+        { 4, 2, 4, 0, "format version 4, this build reads 13", "version 4 (before the thin dielectric)" },
+        { 4, 2, 5, 0, "format version 5, this build reads 13", "version 5 (before the distant light)" },
+        { 4, 2, 6, 0, "format version 6, this build reads 13", "version 6 (before the coat and the textures)" },
+        { 4, 2, 7, 0, "format version 7, this build reads 13", "version 7 (before the environment maps)" },
+        { 4, 2, 8, 0, "format version 8, this build reads 13", "version 8 (before mix, diffuse transmission, maps and the path-length limit)" },
+        { 4, 2, 10, 0, "format version 10, this build reads 13", "version 10 (before the screen window)" },
+        { 4, 2, 11, 0, "format version 11, this build reads 13", "version 11 (before two-sided emission)" },
+        { 4, 2, 12, 0, "format version 12, this build reads 13", "version 12 (before kt_tex and the media)" },
         { o.reserved, 2, 1, 0, "reserved", "reserved field" },
         { o.has_camera, 1, 2, 0, "has_camera", "has_camera 2" },
         { o.has_camera + 1, -4, 0, NAN, "camera pos is not a finite number", "camera NaN" },
@@ -469,6 +473,10 @@ static void test_scene_blob(void)
         { o.mat1_kd_tex, 4, 1, 0, "texture 1 out of range (0 textures)", "kd_tex without textures (finalize)" },
         { o.mat1_kd_tex + 16, 4, 1, 0, "texture 1 out of range (0 textures)", "normal_tex without textures (finalize)" },
         { o.mat1_kd_tex + 20, 4, 2, 0, "texture 2 out of range (0 textures)", "bump_tex without textures (finalize)" },
+        { o.mat1_kd_tex + 44, 4, 3, 0, "texture 3 out of range (0 textures)", "kt_tex without textures (finalize)" },
+        { o.mat1_kd_tex + 52, -4, 0, -0.5f, "a medium's absorption must be >= 0", "negative sigma_in (finalize)" },
+        { o.mat1_kd_tex + 68, -4, 0, -1.0f, "a medium's absorption must be >= 0", "negative sigma_out (finalize)" },
+        { o.mat1_kd_tex + 48, -4, 0, NAN, "material 1 sigma_in is not a finite number", "NaN sigma_in" },
         { o.ntexs, 4, 0x10000000u, 0, "textures need at least", "texture count" },
         { o.mesh0_pos + 4, -4, 0, NAN, "positions is not a finite", "NaN position" },
         { o.mesh0_idx + 4, 4, 4, 0, "vertex index 4 is out of range", "vertex index" },

@@ -39,6 +39,7 @@
 #include "scene/scene.h"
 
 #include "check.h"
+#include "render_check.h"
 #include "scenes_gen.h"
 
 #define PI_D 3.14159265358979323846
@@ -55,23 +56,7 @@ static uint32_t s_sheet_mat(pf_scene_t *scene, float r, float t)
 static int s_render(pf_scene_t *scene, int size, int spp, uint64_t photons, int gather, unsigned terms,
                     pf_image_t *img)
 {
-    pf_error_t err = { { 0 } };
-    int rc = pf_scene_finalize(scene, &err);
-    CHECK(rc == PF_OK, "finalize: %s", err.msg);
-    if (rc != PF_OK)
-        return 0;
-    pf_settings_t s = scene->settings;
-    s.width = s.height = size;
-    s.spp = spp;
-    s.photons = photons;
-    s.caustic_photons = 1000;
-    s.gather = gather;
-    s.threads = 0;
-    pf_job_summary_t sum;
-    rc = pf_job_render_local(scene, &s, terms, 0, img, &sum, &err);
-    CHECK(rc == PF_OK, "render: %s", err.msg);
-    CHECK(rc != PF_OK || sum.bad_pixels == 0, "%zu bad channels", sum.bad_pixels);
-    return rc == PF_OK;
+    return pf_test_render(scene, size, spp, photons, 1000, gather, terms, img);
 }
 
 /* The sheet at y = 0 (face normal +y, or -y when flip), the light at

@@ -41,6 +41,7 @@
 #include "scene/scene.h"
 
 #include "check.h"
+#include "render_check.h"
 #include "scenes_gen.h"
 
 #define DEG (3.14159265358979323846 / 180.0)
@@ -58,33 +59,9 @@ static uint32_t s_add_pane(pf_scene_t *scene)
     return (uint32_t)pf_scene_add_material(scene, &m);
 }
 
-/* Renders scene (finalized here) with terms and these photon counts and
- * gather rays; 0 on failure (checked). */
-static int s_render_gi(pf_scene_t *scene, int size, int spp, uint64_t photons, uint64_t caustic, int gather,
-                       unsigned terms, pf_image_t *img)
-{
-    pf_error_t err = { { 0 } };
-    int rc = pf_scene_finalize(scene, &err);
-    CHECK(rc == PF_OK, "finalize: %s", err.msg);
-    if (rc != PF_OK)
-        return 0;
-    pf_settings_t s = scene->settings;
-    s.width = s.height = size;
-    s.spp = spp;
-    s.photons = photons;
-    s.caustic_photons = caustic;
-    s.gather = gather;
-    s.threads = 0;
-    pf_job_summary_t sum;
-    rc = pf_job_render_local(scene, &s, terms, 0, img, &sum, &err);
-    CHECK(rc == PF_OK, "render: %s", err.msg);
-    CHECK(rc != PF_OK || sum.bad_pixels == 0, "%zu bad channels", sum.bad_pixels);
-    return rc == PF_OK;
-}
-
 static int s_render(pf_scene_t *scene, int size, int spp, uint64_t caustic, unsigned terms, pf_image_t *img)
 {
-    return s_render_gi(scene, size, spp, 1000, caustic, 1, terms, img);
+    return pf_test_render(scene, size, spp, 1000, caustic, 1, terms, img);
 }
 
 /* The furnace of test_render.c (a closed sphere of emission 1 and albedo a,
@@ -108,7 +85,7 @@ static void s_test_furnace(void)
                                         .vfov_deg = 90.0f };
     scene->has_camera = 1;
     pf_image_t img;
-    if (s_render_gi(scene, 24, 1, 60000, 60000, 32, PF_TERM_ALL, &img)) {
+    if (pf_test_render(scene, 24, 1, 60000, 60000, 32, PF_TERM_ALL, &img)) {
         double mean = 0.0, expect = 1.0 / (1.0 - a);
         size_t n = (size_t)img.width * (size_t)img.height * 3, inside = 0;
         for (size_t k = 0; k < n; k++) {
