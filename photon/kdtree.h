@@ -61,6 +61,13 @@ size_t pf_kdtree_knn(const pf_kdtree_t *self, pf_vec3 x, size_t k, float max_r2,
  * estimates that need only the set and its radius (no final sort). */
 size_t pf_kdtree_knn_heap(const pf_kdtree_t *self, pf_vec3 x, size_t k, float max_r2, pf_knn_t *out);
 
+/* pf_kdtree_knn_heap over the photons whose stored normal has a cosine >=
+ * min_cos with unit n (pf_photon_normal_agrees) alone: the others are
+ * neither kept nor counted, so the k found are the k nearest on the side of
+ * a surface that n faces, however dense its other side. */
+size_t pf_kdtree_knn_heap_normal(const pf_kdtree_t *self, pf_vec3 x, pf_vec3 n, float min_cos, size_t k, float max_r2,
+                                 pf_knn_t *out);
+
 /* The nearest photon to x within squared distance max_r2 whose stored normal
  * (pf_photon_normal) has a cosine >= min_cos with unit n; ties
  * go to the lower tree index. Returns 1 and fills *out, or 0 if none. The

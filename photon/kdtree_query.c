@@ -58,7 +58,8 @@ static void s_sift_up(pf_knn_t *h, size_t i)
  * A subtree is skipped only when its plane is strictly farther than the
  * current bound (a photon exactly at the bound may still win on index), and
  * never when that distance is NaN. */
-size_t pf_kdtree_knn_heap(const pf_kdtree_t *self, pf_vec3 x, size_t k, float max_r2, pf_knn_t *out)
+static size_t s_knn_heap(const pf_kdtree_t *self, pf_vec3 x, const pf_vec3 *n, float min_cos, size_t k, float max_r2,
+                         pf_knn_t *out)
 {
     if (!self || self->n == 0 || k == 0 || s_hopeless(x, max_r2))
         return 0;
@@ -74,7 +75,7 @@ size_t pf_kdtree_knn_heap(const pf_kdtree_t *self, pf_vec3 x, size_t k, float ma
             uint32_t m = lo + (hi - lo) / 2;
             const float *p = ph[m].pos;
             float d2 = s_dist2(q, p);
-            if (d2 <= bound) {
+            if (d2 <= bound && (!n || pf_photon_normal_agrees(&ph[m], *n, min_cos))) {
                 pf_knn_t c = { m, d2 };
                 if (count < k) {
                     out[count] = c;
@@ -114,6 +115,17 @@ size_t pf_kdtree_knn_heap(const pf_kdtree_t *self, pf_vec3 x, size_t k, float ma
         lo = stack[sp].lo;
         hi = stack[sp].hi;
     }
+}
+
+size_t pf_kdtree_knn_heap(const pf_kdtree_t *self, pf_vec3 x, size_t k, float max_r2, pf_knn_t *out)
+{
+    return s_knn_heap(self, x, NULL, 0.0f, k, max_r2, out);
+}
+
+size_t pf_kdtree_knn_heap_normal(const pf_kdtree_t *self, pf_vec3 x, pf_vec3 n, float min_cos, size_t k, float max_r2,
+                                 pf_knn_t *out)
+{
+    return s_knn_heap(self, x, &n, min_cos, k, max_r2, out);
 }
 
 size_t pf_kdtree_knn(const pf_kdtree_t *self, pf_vec3 x, size_t k, float max_r2, pf_knn_t *out)

@@ -169,12 +169,30 @@ static size_t s_keep_before(pf_knn_t *a, size_t n, uint64_t kth)
     return m;
 }
 
-/* The photons of an estimate: the k - 1 nearest to x (the k-th only marks
- * the radius, *r2: for photons of density lambda, E[(k - 1) / (pi r_k^2)] =
- * lambda, while counting all k overestimates by k / (k - 1), 1 % at k = 100,
- * which the furnace shows), or all within max_r2 (*r2 = max_r2) when fewer
- * than k lie there, or for k = 1 the nearest over max_r2; returns how many,
- * in scratch->found.
+/* Keeps, in place and in order, the photons of found[0, c) on n's side
+ * (their stored normals agree with n); c itself when c > cap (they were not
+ * all written: the caller's overflow case). */
+static size_t s_keep_side(const pf_kdtree_t *map, pf_knn_t *found, size_t c, size_t cap, pf_vec3 n)
+{
+    if (c > cap)
+        return c;
+    const pf_photon_t *ph = pf_kdtree_photons(map);
+    size_t m = 0;
+    for (size_t i = 0; i < c; i++) {
+        pf_knn_t e = found[i];
+        found[m] = e;
+        m += (size_t)pf_photon_normal_agrees(&ph[e.index], n, PF_NORMAL_AGREE);
+    }
+    return m;
+}
+
+/* The k nearest photons to x of any side, as s_gather's first step: the
+ * k - 1 nearest (the k-th only marks the radius, *r2: for photons of
+ * density lambda, E[(k - 1) / (pi r_k^2)] = lambda, while counting all k
+ * overestimates by k / (k - 1), 1 % at k = 100, which the furnace shows),
+ * or all within max_r2 (*r2 = max_r2, *full 0) when fewer than k lie there,
+ * or for k = 1 the nearest over max_r2; returns how many, in
+ * scratch->found.
  *
  * They come in the radius search's order (a pre-order walk of the tree,
  * nearer child first), which does not depend on the radius searched: a larger
@@ -187,10 +205,11 @@ static size_t s_keep_before(pf_knn_t *a, size_t n, uint64_t kth)
  * selection, cheaper than keeping a heap; when the hint holds fewer than k
  * (or too many to keep) the k-th is found by a heap search without it, and
  * the photons before it collected within its distance. */
-static size_t s_gather(const pf_kdtree_t *map, pf_vec3 x, int k, float max_r2, float hint_r2, pf_pm_scratch_t *scratch,
-                       float *r2)
+static size_t s_gather_any(const pf_kdtree_t *map, pf_vec3 x, int k, float max_r2, float hint_r2,
+                           pf_pm_scratch_t *scratch, float *r2, int *full)
 {
     *r2 = max_r2;
+    *full = 0;
     if (!map || pf_kdtree_size(map) == 0 || k <= 0)
         return 0;
     if (k > PF_MAX_K)
@@ -208,6 +227,7 @@ static size_t s_gather(const pf_kdtree_t *map, pf_vec3 x, int k, float max_r2, f
         s_sort_by_index(found, c, scratch->keys); /* as the heap path below returns them */
         return c;
     }
+    *full = 1;
     if (c >= kk && c <= cap) {
         for (size_t i = 0; i < c; i++)
             scratch->keys[i] = s_knn_key(&found[i]);
@@ -223,6 +243,7 @@ static size_t s_gather(const pf_kdtree_t *map, pf_vec3 x, int k, float max_r2, f
         if (n < kk) {
             /* All of them (none within a hint can have found k): in tree
              * order, which is canonical too and cheaper than a walk. */
+            *full = 0;
             s_sort_by_index(found, n, scratch->keys);
             return n;
         }
@@ -244,6 +265,70 @@ static size_t s_gather(const pf_kdtree_t *map, pf_vec3 x, int k, float max_r2, f
     size_t m = s_keep_before(found, c, kth);
     PF_DCHECK(m == kk - 1);
     return m;
+}
+
+/* How much farther, in area, the k nearest photons of x's own side may
+ * reach than the k nearest of any side: it bounds the search past a sheet
+ * whose other side is far denser (S_SIDE_AREA k photons at most). */
+#define S_SIDE_AREA 64.0f
+
+/* The k - 1 nearest photons of n's side within lim2 and the k-th's
+ * squared distance in *r2, or all of them over lim2 when fewer than k lie
+ * there; in the orders s_gather_any gives (a radius walk, or tree order). */
+static size_t s_gather_side(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, size_t kk, float lim2,
+                            pf_pm_scratch_t *scratch, float *r2)
+{
+    const size_t cap = PF_PM_FOUND;
+    pf_knn_t *found = scratch->found;
+    *r2 = lim2;
+    size_t got = pf_kdtree_knn_heap_normal(map, x, n, PF_NORMAL_AGREE, kk, lim2, found);
+    if (got < kk) {
+        s_sort_by_index(found, got, scratch->keys);
+        return got;
+    }
+    uint64_t kth = s_knn_key(&found[0]);
+    float kth_d2 = found[0].d2;
+    *r2 = kth_d2;
+    size_t c = s_keep_side(map, found, pf_kdtree_radius_upto(map, x, kth_d2, found, cap), cap, n);
+    if (c > cap) { /* the other side's photons, too many to keep: the heap's own k - 1 */
+        pf_kdtree_knn_heap_normal(map, x, n, PF_NORMAL_AGREE, kk, lim2, found);
+        found[0] = found[kk - 1];
+        return kk - 1;
+    }
+    size_t m = s_keep_before(found, c, kth);
+    PF_DCHECK(m == kk - 1);
+    return m;
+}
+
+/* The photons of the precompute's estimate at x, surface normal n (the
+ * camera pass's estimates take s_gather_any's alone): the k - 1 nearest
+ * (s_gather_any), those whose stored normals disagree with n left for
+ * s_estimate to skip, as long as at least an eighth of them agree (on a
+ * thin curved part or in a corner many do not: the disc of all of them is
+ * the estimate's, as it always was). When fewer do, x lies on the sparse
+ * side of a sheet lit far more on its other side: the k nearest then would shrink
+ * the disc to the other side's density, leaving a few of x's photons over
+ * a tiny disc (noise) and a support (pf_irradiance_radius) with gaps
+ * between the irradiance points, where lookups read zero. So the k - 1
+ * nearest of x's side are taken instead, over the k-th's disc, within
+ * S_SIDE_AREA times the first disc's area (beyond it, all of x's side
+ * within that area over it). Every step depends on x, n and the map alone:
+ * the same bits whatever the hint. */
+static size_t s_gather(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int k, float max_r2, float hint_r2,
+                       pf_pm_scratch_t *scratch, float *r2)
+{
+    int full;
+    size_t cnt = s_gather_any(map, x, k, max_r2, hint_r2, scratch, r2, &full);
+    if (!full || k <= 1)
+        return cnt;
+    const pf_photon_t *ph = pf_kdtree_photons(map);
+    size_t agree = 0;
+    for (size_t i = 0; i < cnt; i++)
+        agree += (size_t)pf_photon_normal_agrees(&ph[scratch->found[i].index], n, PF_NORMAL_AGREE);
+    if (8 * agree >= cnt)
+        return cnt;
+    size_t kk = (size_t)(k > PF_MAX_K ? PF_MAX_K : k);
+    return s_gather_side(map, x, n, kk, fminf(max_r2, S_SIDE_AREA * *r2), scratch, r2);
 }
 
 pf_vec3 pf_pm_irradiance(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int k, float max_r2, pf_pm_scratch_t *scratch,
@@ -306,7 +391,8 @@ pf_vec3 pf_pm_estimate(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int k, floa
                        float shrink2, int cone, pf_pm_scratch_t *scratch, float *r2_out)
 {
     float r2 = max_r2;
-    size_t cnt = s_gather(map, x, k, max_r2, hint_r2, scratch, &r2);
+    int full;
+    size_t cnt = s_gather_any(map, x, k, max_r2, hint_r2, scratch, &r2, &full);
     if (r2_out)
         *r2_out = r2;
     return s_estimate(map, scratch, cnt, n, r2, shrink2, cone);
@@ -324,7 +410,8 @@ pf_vec3 pf_pm_radiance(const pf_kdtree_t *map, const struct pf_material *m, pf_v
                        float max_r2, float shrink2, pf_pm_scratch_t *scratch)
 {
     float r2 = 0.0f;
-    size_t cnt = s_gather(map, x, k, max_r2, INFINITY, scratch, &r2);
+    int full;
+    size_t cnt = s_gather_any(map, x, k, max_r2, INFINITY, scratch, &r2, &full);
     if (cnt == 0 || !(r2 > 0.0f))
         return pf_v3s(0.0f);
     if (shrink2 < 1.0f)
@@ -467,6 +554,8 @@ static size_t s_seen_estimate(const pf_kdtree_t *map, const pf_accel_t *accel, s
         c = m;
         for (; tested < c && seen < kk; tested++) {
             pf_knn_t f = s_knn_of_key(vs->keys[tested]);
+            if (!pf_photon_normal_agrees(&ph[f.index], n, PF_NORMAL_AGREE))
+                continue; /* the other side's: neither seen nor hidden (s_gather) */
             if (s_seen(accel, &near, x, n, &ph[f.index], sqrtf(f.d2), eps))
                 vs->visible[seen++] = vs->keys[tested];
             else
@@ -528,7 +617,7 @@ pf_vec3 pf_pm_irradiance_seen(const pf_kdtree_t *map, const pf_accel_t *accel, p
                               pf_pm_visible_scratch_t *vs, float *r2_out, int *flat_out)
 {
     float r2 = max_r2;
-    size_t cnt = s_gather(map, x, k, max_r2, hint_r2, scratch, &r2);
+    size_t cnt = s_gather(map, x, n, k, max_r2, hint_r2, scratch, &r2);
     const pf_photon_t *ph = pf_kdtree_photons(map);
     pf_vec3 e = s_estimate(map, scratch, cnt, n, r2, shrink2, 0);
     *r2_out = r2;

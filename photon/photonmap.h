@@ -221,7 +221,12 @@ void pf_pm_visible_scratch_free(pf_pm_visible_scratch_t *vs);
  * estimate is pf_pm_estimate's, bit for bit, and no ray is traced
  * for a flat point. Otherwise it is the same estimate over the seen
  * photons alone: the k - 1 nearest seen ones over the disc of the k-th seen
- * one (or all seen within max_r2 over that disc). A pure function of the
+ * one (or all seen within max_r2 over that disc). Unlike pf_pm_estimate,
+ * where fewer than an eighth of the k nearest photons agree with n (x on
+ * the dim side of a sheet lit far more on its other side) the photons
+ * counted are the k nearest that agree, within 64 times the first disc's
+ * area: the disc, and the point's support, are then of x's own side's
+ * density (photonmap.c, s_gather). A pure function of the
  * map, accel and the query, whatever the hint. k <= PF_MAX_K. */
 pf_vec3 pf_pm_irradiance_seen(const pf_kdtree_t *map, const pf_accel_t *accel, pf_vec3 x, pf_vec3 n, int k,
                               float max_r2, float hint_r2, float shrink2, pf_pm_scratch_t *scratch,

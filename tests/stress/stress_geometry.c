@@ -12,6 +12,7 @@
 
 #include "accel/accel.h"
 #include "base/log.h"
+#include "base/rng.h"
 #include "load/load.h"
 #include "photon/irradiance.h"
 #include "render/render.h"
@@ -272,11 +273,11 @@ static int s_key_cmp(const void *a, const void *b)
 
 /* The irradiance (green channel) at irradiance point q by
  * pf_pm_irradiance's rule, from the photons of q's own side of the wall
- * only (x > side_x, a plane inside the wall): the k - 1 nearest of them, those with
- * agreeing normals summed, over the disc of the k-th; or all within max_r2
- * over that disc; that disc shrunk by shrink2 (a progressive pass's) keeps
- * those within it. The unshrunk radius goes to *r_out. buf holds the map's
- * size. */
+ * only (x > side_x, a plane inside the wall) whose normals agree with q's:
+ * the k - 1 nearest of them summed over the disc of the k-th; or all within
+ * max_r2 over that disc; that disc shrunk by shrink2 (a progressive pass's)
+ * keeps those within it. The unshrunk radius goes to *r_out. buf holds the
+ * map's size. */
 static double s_same_side_irradiance(const pf_kdtree_t *global, const pf_photon_t *q, float side_x, int k,
                                      float max_r2, float shrink2, pf_knn_t *buf, double *r_out)
 {
@@ -285,7 +286,7 @@ static double s_same_side_irradiance(const pf_kdtree_t *global, const pf_photon_
     size_t c = 0;
     for (size_t i = 0; i < pf_kdtree_size(global); i++) {
         float d2 = pf_len2(pf_sub(pf_photon_pos(&ph[i]), x));
-        if (ph[i].pos[0] > side_x && d2 <= max_r2)
+        if (ph[i].pos[0] > side_x && d2 <= max_r2 && pf_photon_normal_agrees(&ph[i], n, PF_NORMAL_AGREE))
             buf[c++] = (pf_knn_t){ (uint32_t)i, d2 };
     }
     qsort(buf, c, sizeof *buf, s_key_cmp);
@@ -297,7 +298,7 @@ static double s_same_side_irradiance(const pf_kdtree_t *global, const pf_photon_
     *r_out = sqrt(r2);
     double rs2 = shrink2 < 1.0f ? (double)(float)(r2 * shrink2) : r2, s = 0.0;
     for (size_t i = 0; i < c; i++)
-        if (pf_photon_normal_agrees(&ph[buf[i].index], n, PF_NORMAL_AGREE) && (shrink2 >= 1.0f || buf[i].d2 < rs2))
+        if (shrink2 >= 1.0f || buf[i].d2 < rs2)
             s += ph[buf[i].index].power[1];
     return s / (M_PI * rs2);
 }
@@ -400,6 +401,65 @@ static void s_thin_wall_gap(void)
     pf_scene_destroy(&scene);
 }
 
+/* A single sheet (one 2 x 2 quad, kd 0.5, both sides diffuse) lit on
+ * both sides: a point light 0.5 above it of intensity 25, another 1 below
+ * of intensity 1, so that the top holds about 100 times the photons the
+ * underside does, at the same places. The underside's photons come
+ * straight from the light below (nothing else is there to bounce them), so
+ * its irradiance is I cos / r^2. Estimates on the underside
+ * must count the underside's photons alone, in the number (the k nearest)
+ * as in the sum: counting the top's in k shrank the disc to the top's
+ * density, so the irradiance points' supports left gaps between the
+ * underside's points (as far apart as that side's photons), and lookups
+ * there read zero. Lookups at 2000 points of the underside's central half
+ * must each read a point (none zero), and their mean the analytic mean
+ * within 4 % (before: 1324 of them zero, the mean 0.50 of it; now 0 and
+ * 0.9999). */
+static void s_two_sided_sheet(void)
+{
+    pf_scene_t *scene = pf_scene_create();
+    uint32_t white = stress_material(scene, stress_diffuse("white", 0.5f, 0.0f));
+    pf_test_quad(scene, pf_v3(-1, 0, -1), pf_v3(0, 0, 2), pf_v3(2, 0, 0), white); /* normal +y */
+    stress_point_light(scene, pf_v3(0, 0.5f, 0), 25.0f);
+    stress_point_light(scene, pf_v3(0, -1, 0), 1.0f);
+    stress_camera(scene, pf_v3(0, -0.5f, 0.01f), pf_v3(0, 0, 0), pf_v3(0, 0, 1), 60.0f);
+    pf_error_t err = { { 0 } };
+    CHECK(pf_scene_finalize(scene, &err) == PF_OK, "finalize: %s", err.msg);
+    pf_settings_t s = stress_settings(scene, 16, 1, 4000000, 1);
+    const char *what = "a sheet lit 100 times more on top";
+    stress_job_t job;
+    if (stress_job_begin(&job, what, scene, &s) != PF_OK) {
+        pf_scene_destroy(&scene);
+        return;
+    }
+    /* No photon bounces off a diffuse surface onto another here, so the
+     * render skips the gather and makes no points: made here. */
+    const pf_photon_maps_t *pm = &job.fr.maps;
+    pf_kdtree_t *irr = NULL;
+    size_t stride = pf_irradiance_points_stride(pf_kdtree_size(pm->global), &job.settings);
+    int rc = pf_irradiance_precompute(pm->global, (int)stride, s.global_k, pm->global_r2, 1.0f, job.fr.accel,
+                                      job.settings.threads, &irr);
+    CHECK(rc == PF_OK, "%s: precompute: %s", what, pf_strerror(rc));
+    pf_rng_t rng = pf_rng_make(7, PF_STREAM_TEST, 0, 0);
+    double got = 0.0, want = 0.0;
+    int zeros = 0, n = 2000;
+    for (int i = 0; i < n; i++) {
+        pf_vec3 p = pf_v3(pf_rng_float(&rng) - 0.5f, 0.0f, pf_rng_float(&rng) - 0.5f);
+        pf_vec3 e = pf_irradiance_lookup(irr, pm->irradiance_r2, job.fr.accel, p, pf_v3(0, -1, 0));
+        double r2 = 1.0 + (double)pf_len2(p);
+        zeros += e.y == 0.0f;
+        got += e.y;
+        want += 1.0 / (r2 * sqrt(r2)); /* I cos / r^2 with cos = 1 / r */
+    }
+    printf("%s: %d of %d lookups on its underside read zero; their mean %.4f times the analytic\n", what, zeros, n,
+           got / want);
+    CHECK(zeros == 0, "%s: %d of %d underside lookups read zero (supports with gaps)", what, zeros, n);
+    CHECK(fabs(got / want - 1.0) < 0.04, "%s: the underside reads %.4f times its irradiance", what, got / want);
+    pf_kdtree_destroy(&irr);
+    stress_job_end(&job);
+    pf_scene_destroy(&scene);
+}
+
 /* The camera inside a closed, opaque box; the lights outside. */
 static void s_camera_in_box(void)
 {
@@ -438,6 +498,7 @@ void stress_test_geometry(void)
     s_thin_wall(2e-4f);
     s_thin_wall(2e-6f);
     s_thin_wall_gap();
+    s_two_sided_sheet();
     s_camera_in_box();
 }
 
