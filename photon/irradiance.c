@@ -54,6 +54,65 @@ int pf_irradiance_precompute_limited(const pf_kdtree_t *global, int stride, int 
     return *out ? PF_OK : PF_ENOMEM;
 }
 
+/* Sample points of the coverage test (below): 32 keep its quadrature
+ * within 0.1 % of the exact share on the thin-wall stress case (16: 2 %;
+ * asking a quarter of them first and the rest only when one missed left
+ * slivers of discs uncounted: 1.6 %). */
+#define S_COVER_N 32
+/* No estimate is scaled up by more than this: a disc mostly off the
+ * surface (the test's reading, in clutter, is least sure there) would
+ * read its few photons far too bright; a straight edge through the point
+ * leaves half. */
+#define S_COVER_MIN 0.5f
+/* The test's segments run this far above x's plane, over their length:
+ * above a surface curving away (convex) or bent by its tessellation, below
+ * a table top, a seat or a shelf over x (which a lift by the whole length,
+ * as s_seen's, would take for walls). */
+#define S_COVER_LIFT 0.25f
+
+/* The share of the disc of radius r about x in x's tangent plane (unit
+ * normal n) that x's surface covers, for a point near other surfaces (not
+ * flat): the k-NN estimate divides the photons' flux by the whole disc, and
+ * at a corner or an edge part of the disc lies behind a wall or past the
+ * edge, where no photon of x's surface can be, so the estimate reads low by
+ * that share (the boundary bias of density estimation: 0.5 % on the whole
+ * Cornell box at 400k photons, against a path tracer, far more in its
+ * corners). S_COVER_N points spread over the disc (stratified by area, a
+ * golden-angle spiral turned by a hash of x) each count when (1) the
+ * segment from x to it, both lifted along n by S_COVER_LIFT times the
+ * point's distance rho, hits nothing (no wall between), and (2) a ray from
+ * the lifted point down along -n meets, within the slab the estimate keeps
+ * (PF_PM_SLAB rho below the plane), a surface parallel to x's within
+ * PF_NORMAL_AGREE (either winding: its side facing the ray is the one
+ * photons land on): the surface goes on there. At least S_COVER_MIN.
+ * Against bench/pathref the Cornell box's mean went from -0.50 % to
+ * -0.05 % (and -0.93 % to 0.00 % at 100k photons). */
+static float s_coverage(const pf_accel_t *accel, pf_vec3 x, pf_vec3 n, float r)
+{
+    pf_vec3 t, b;
+    pf_basis(n, &t, &b);
+    uint32_t bits[3];
+    memcpy(bits, &x, sizeof bits);
+    float turn = (float)((bits[0] * 2654435761u ^ bits[1] * 2246822519u ^ bits[2] * 3266489917u) >> 8) * 0x1p-24f;
+    int covered = 0;
+    for (int i = 0; i < S_COVER_N; i++) {
+        float rho = r * sqrtf(((float)i + 0.5f) / (float)S_COVER_N);
+        float phi = 2.0f * PF_PI * (turn + 0.6180339887f * (float)i);
+        pf_vec3 d = pf_add(pf_scale(t, cosf(phi)), pf_scale(b, sinf(phi)));
+        float lift = S_COVER_LIFT * rho;
+        pf_vec3 a = pf_madd(x, n, lift), e = pf_madd(pf_madd(x, d, rho), n, lift);
+        pf_ray_t across = { a, d };
+        if (pf_accel_occluded(accel, &across, rho))
+            continue; /* a wall between */
+        pf_ray_t down = { e, pf_neg(n) };
+        pf_hit_t h;
+        if (pf_accel_intersect(accel, &down, lift + PF_PM_SLAB * rho, &h) && fabsf(pf_dot(h.ng, n)) >= PF_NORMAL_AGREE)
+            covered++;
+    }
+    float f = (float)covered / (float)S_COVER_N;
+    return f > S_COVER_MIN ? f : S_COVER_MIN;
+}
+
 int pf_irradiance_points(const pf_kdtree_t *global, const pf_irr_params_t *par, const pf_accel_t *accel, int threads,
                          size_t first, size_t m, pf_photon_t *pts)
 {
@@ -91,6 +150,11 @@ int pf_irradiance_points(const pf_kdtree_t *global, const pf_irr_params_t *par, 
                                               &vis, &r2, &flat);
             hint = r2 < max_r2 ? fminf(1.44f * r2, max_r2) : max_r2;
             float r = sqrtf(r2);
+            float rs = sqrtf(shrink2 < 1.0f ? r2 * shrink2 : r2);
+            /* the disc's share off the surface, where another surface comes
+             * within the disc itself (fewer than k found: none asked) */
+            if (accel && !flat && r2 < max_r2 && !pf_accel_only_plane(accel, pf_photon_pos(p), nrm, rs))
+                e = pf_scale(e, 1.0f / s_coverage(accel, pf_photon_pos(p), nrm, rs));
             uint32_t support;
             memcpy(&support, &r, sizeof support);
             if (flat)

@@ -10,7 +10,11 @@
  * irradiance from its k nearest photons within max_r2 whose surface normal
  * agrees, over their disc shrunk by shrink2 (a progressive pass's,
  * pf_pass_shrink2; 1: none), leaving out those the point cannot see past
- * accel's surfaces (pf_pm_irradiance_seen: a thin wall's far side), and
+ * accel's surfaces (pf_pm_irradiance_seen: a thin wall's far side) and,
+ * at a point near other surfaces, those off its own surface's slab, and
+ * divides by the share of the disc its surface covers there (irradiance.c,
+ * s_coverage: a corner, an edge, a table leg; the boundary bias of the
+ * density estimate, 0.5 % of the whole Cornell box at 400k photons), and
  * builds *out: records with the photon's position and normal and the
  * irradiance (W/m^2) in power[], and the support radius (the unshrunk
  * disc's: where photons were found, which lookups must lie within) in dir

@@ -270,7 +270,7 @@ static size_t s_gather_any(const pf_kdtree_t *map, pf_vec3 x, int k, float max_r
 /* How much farther, in area, the k nearest photons of x's own side may
  * reach than the k nearest of any side: it bounds the search past a sheet
  * whose other side is far denser (S_SIDE_AREA k photons at most). */
-#define S_SIDE_AREA 64.0f
+#define S_SIDE_AREA 32.0f
 
 /* The k - 1 nearest photons of n's side within lim2 and the k-th's
  * squared distance in *r2, or all of them over lim2 when fewer than k lie
@@ -342,8 +342,16 @@ pf_vec3 pf_pm_irradiance(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int k, fl
  * constant kernel or, with cone, Jensen's cone filter. shrink2 = 1 keeps
  * every photon found (no distance test), so the sums are the unshrunk
  * estimate's, bit for bit. */
-static pf_vec3 s_estimate(const pf_kdtree_t *map, const pf_pm_scratch_t *scratch, size_t cnt, pf_vec3 n, float r2,
-                          float shrink2, int cone)
+
+/* Whether photon p (squared distance d2 from x) lies within x's slab. */
+static inline int s_in_slab(const pf_photon_t *p, pf_vec3 x, pf_vec3 n, float d2)
+{
+    float h = pf_dot(pf_sub(pf_photon_pos(p), x), n);
+    return h * h <= PF_PM_SLAB * PF_PM_SLAB * d2;
+}
+
+static pf_vec3 s_estimate_slab(const pf_kdtree_t *map, const pf_pm_scratch_t *scratch, size_t cnt,
+                               const pf_vec3 *slab_x, pf_vec3 n, float r2, float shrink2, int cone)
 {
     if (cnt == 0 || !(r2 > 0.0f))
         return pf_v3s(0.0f);
@@ -355,9 +363,10 @@ static pf_vec3 s_estimate(const pf_kdtree_t *map, const pf_pm_scratch_t *scratch
     double s[3] = { 0, 0, 0 };
     for (size_t i = 0; i < cnt; i++) {
         const pf_photon_t *p = &ph[scratch->found[i].index];
-        if (!pf_photon_normal_agrees(p, n, PF_NORMAL_AGREE) || !pf_photon_counts(p, scratch->bounce_limit))
-            continue;
         float d2 = scratch->found[i].d2;
+        if (!pf_photon_normal_agrees(p, n, PF_NORMAL_AGREE) || !pf_photon_counts(p, scratch->bounce_limit) ||
+            (slab_x && !s_in_slab(p, *slab_x, n, d2)))
+            continue;
         double w = 1.0;
         if (cone) {
             w = 1.0 - sqrt((double)d2) / r;
@@ -373,6 +382,12 @@ static pf_vec3 s_estimate(const pf_kdtree_t *map, const pf_pm_scratch_t *scratch
     /* The cone of height 1 over the disc holds pi r^2 / 3; normalize to the disc. */
     double inv = (cone ? 3.0 : 1.0) / (PF_PI * (double)rs2);
     return pf_v3((float)(s[0] * inv), (float)(s[1] * inv), (float)(s[2] * inv));
+}
+
+static pf_vec3 s_estimate(const pf_kdtree_t *map, const pf_pm_scratch_t *scratch, size_t cnt, pf_vec3 n, float r2,
+                          float shrink2, int cone)
+{
+    return s_estimate_slab(map, scratch, cnt, NULL, n, r2, shrink2, cone);
 }
 
 pf_vec3 pf_pm_irradiance_hint(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int k, float max_r2, float hint_r2,
@@ -601,7 +616,7 @@ static size_t s_seen_estimate(const pf_kdtree_t *map, const pf_accel_t *accel, s
         pf_knn_t f = s_knn_of_key(vs->visible[i]);
         const pf_photon_t *p = &ph[f.index];
         if (!pf_photon_normal_agrees(p, n, PF_NORMAL_AGREE) || (shrink2 < 1.0f && !(f.d2 < rs2)) ||
-            !pf_photon_counts(p, bounce_limit))
+            !pf_photon_counts(p, bounce_limit) || !s_in_slab(p, x, n, f.d2))
             continue;
         s[0] += p->power[0];
         s[1] += p->power[1];
@@ -627,6 +642,7 @@ pf_vec3 pf_pm_irradiance_seen(const pf_kdtree_t *map, const pf_accel_t *accel, p
     *flat_out = pf_accel_only_plane(accel, x, n, PF_IRRADIANCE_FLAT_REACH * sqrtf(r2));
     if (*flat_out || cnt == 0)
         return e;
+    e = s_estimate_slab(map, scratch, cnt, &x, n, r2, shrink2, 0); /* other surfaces near: x's own slab */
     if (k > PF_MAX_K)
         k = PF_MAX_K;
     /* The triangles within reach of the nearest photons' segments (2 d,

@@ -193,6 +193,15 @@ pf_vec3 pf_pm_radiance(const pf_kdtree_t *map, const struct pf_material *m, pf_v
 /* The most surfaces near a point whose planes spare the visibility rays
  * (pf_accel_near_planes); near more, every photon's ray is traced. */
 #define PF_PM_VISIBLE_PLANES 32
+/* How far off x's tangent plane a photon of the irradiance precompute's
+ * estimate at a point near other surfaces may lie, over its distance from
+ * x (the sine of its elevation). Photons of a parallel surface above or
+ * below x (a chair's seat over the floor beneath it, a shelf) share x's
+ * normal but not its surface; on a curved surface of radius R a photon at
+ * distance d lies d / (2 R) off the plane, kept out to d = R, beyond which
+ * its normal leaves the normal test's cone anyway. */
+#define PF_PM_SLAB 0.5f
+
 /* Working memory of pf_pm_irradiance_seen (one per thread): room for
  * cap photons of a radius search and their keys. */
 typedef struct pf_pm_visible_scratch {
@@ -226,7 +235,8 @@ void pf_pm_visible_scratch_free(pf_pm_visible_scratch_t *vs);
  * the dim side of a sheet lit far more on its other side) the photons
  * counted are the k nearest that agree, within 64 times the first disc's
  * area: the disc, and the point's support, are then of x's own side's
- * density (photonmap.c, s_gather). A pure function of the
+ * density (photonmap.c, s_gather). At a point that is not flat the sum
+ * keeps only the photons within x's slab (PF_PM_SLAB). A pure function of the
  * map, accel and the query, whatever the hint. k <= PF_MAX_K. */
 pf_vec3 pf_pm_irradiance_seen(const pf_kdtree_t *map, const pf_accel_t *accel, pf_vec3 x, pf_vec3 n, int k,
                               float max_r2, float hint_r2, float shrink2, pf_pm_scratch_t *scratch,

@@ -262,45 +262,30 @@ static void s_thin_wall(float thickness)
     pf_scene_destroy(&scene);
 }
 
-/* An entry of the brute-force estimate below: a photon's (d2, index) key. */
-static int s_key_cmp(const void *a, const void *b)
-{
-    const pf_knn_t *x = a, *y = b;
-    if (x->d2 != y->d2)
-        return x->d2 < y->d2 ? -1 : 1;
-    return x->index < y->index ? -1 : x->index > y->index;
-}
-
-/* The irradiance (green channel) at irradiance point q by
- * pf_pm_irradiance's rule, from the photons of q's own side of the wall
- * only (x > side_x, a plane inside the wall) whose normals agree with q's:
- * the k - 1 nearest of them summed over the disc of the k-th; or all within
- * max_r2 over that disc; that disc shrunk by shrink2 (a progressive pass's)
- * keeps those within it. The unshrunk radius goes to *r_out. buf holds the
- * map's size. */
-static double s_same_side_irradiance(const pf_kdtree_t *global, const pf_photon_t *q, float side_x, int k,
-                                     float max_r2, float shrink2, pf_knn_t *buf, double *r_out)
+/* The irradiance (green channel) at irradiance point q as the precompute
+ * means it, from the photons of q's own side of the wall only (x > side_x,
+ * a plane inside the wall) whose normals agree with q's: those strictly
+ * within q's disc (its support radius, shrunk by shrink2: a progressive
+ * pass's) summed over that disc's share of the floor, the disc less the
+ * segment the wall (its face at face_x) cuts off (irradiance.c's coverage,
+ * here exact). The radius goes to *r_out. */
+static double s_same_side_irradiance(const pf_kdtree_t *global, const pf_photon_t *q, float side_x, float face_x,
+                                     float shrink2, double *r_out)
 {
     const pf_photon_t *ph = pf_kdtree_photons(global);
     pf_vec3 x = pf_photon_pos(q), n = pf_photon_normal(q);
-    size_t c = 0;
+    double r2 = (double)pf_irradiance_radius(q) * (double)pf_irradiance_radius(q);
+    double rs2 = shrink2 < 1.0f ? (double)(float)(r2 * shrink2) : r2, s = 0.0;
+    *r_out = sqrt(r2);
     for (size_t i = 0; i < pf_kdtree_size(global); i++) {
         float d2 = pf_len2(pf_sub(pf_photon_pos(&ph[i]), x));
-        if (ph[i].pos[0] > side_x && d2 <= max_r2 && pf_photon_normal_agrees(&ph[i], n, PF_NORMAL_AGREE))
-            buf[c++] = (pf_knn_t){ (uint32_t)i, d2 };
+        if (ph[i].pos[0] > side_x && d2 < rs2 && pf_photon_normal_agrees(&ph[i], n, PF_NORMAL_AGREE))
+            s += ph[i].power[1];
     }
-    qsort(buf, c, sizeof *buf, s_key_cmp);
-    double r2 = max_r2;
-    if (c >= (size_t)k) {
-        r2 = buf[k - 1].d2;
-        c = (size_t)k - 1;
-    }
-    *r_out = sqrt(r2);
-    double rs2 = shrink2 < 1.0f ? (double)(float)(r2 * shrink2) : r2, s = 0.0;
-    for (size_t i = 0; i < c; i++)
-        if (shrink2 >= 1.0f || buf[i].d2 < rs2)
-            s += ph[buf[i].index].power[1];
-    return s / (M_PI * rs2);
+    double rs = sqrt(rs2), w = (double)x.x - (double)face_x, cut = 0.0;
+    if (w < rs)
+        cut = rs2 * acos(w / rs) - w * sqrt(rs2 - w * w);
+    return s / (M_PI * rs2 - cut);
 }
 
 /* s_thin_wall_gap's check of one irradiance map irr (estimates over discs
@@ -310,8 +295,6 @@ static double s_same_side_irradiance(const pf_kdtree_t *global, const pf_photon_
 static void s_gap_compare(const char *what, const pf_kdtree_t *global, const pf_kdtree_t *irr, int k, float max_r2,
                           float shrink2, float wall_x, float t)
 {
-    pf_knn_t *buf = malloc(pf_kdtree_size(global) * sizeof *buf);
-    PF_CHECK(buf != NULL);
     double got = 0.0, want = 0.0, worst = 0.0, lit_a = 0.0;
     size_t near = 0, near_a = 0;
     const pf_photon_t *q = pf_kdtree_photons(irr);
@@ -325,7 +308,7 @@ static void s_gap_compare(const char *what, const pf_kdtree_t *global, const pf_
         }
         if (!(w > 0.0f && w < 0.05f))
             continue;
-        double r, e = s_same_side_irradiance(global, &q[i], wall_x - 0.5f * t, k, max_r2, shrink2, buf, &r);
+        double r, e = s_same_side_irradiance(global, &q[i], wall_x - 0.5f * t, wall_x, shrink2, &r);
         if (!(w < r))
             continue;
         got += q[i].power[1];
@@ -333,7 +316,6 @@ static void s_gap_compare(const char *what, const pf_kdtree_t *global, const pf_
         worst = fmax(worst, e > 0.0 ? fabs(q[i].power[1] / e - 1.0) : q[i].power[1] > 0.0f);
         near++;
     }
-    free(buf);
     double ratio = got / want, scale = (lit_a / (double)(near_a ? near_a : 1)) / (want / (double)(near ? near : 1));
     printf("%s, disc shrunk by %.3f: %zu irradiance points on the dim floor within their support of the wall read "
            "%.4f times the estimate from their side's photons (bound 1 +- 0.01; worst point %+.1f %%); the lit "
