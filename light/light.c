@@ -46,6 +46,13 @@
  * uniformly on it (spherelight.c); in the BVH it is bounded by its box and
  * emits in every direction.
  *
+ * An emitting triangle whose solid angle from the receiver lies in
+ * sphtri.h's range (large or near: the walls beside a ceiling panel) is
+ * sampled uniformly in that solid angle (Arvo's spherical triangle, as
+ * pbrt-v4), pdf pmf / omega; smaller ones uniformly by area, pdf
+ * pmf d^2 / (A cos_l). pf_lights_pdf_at decides alike from the same solid
+ * angle, so MIS sees the pdf the sample had.
+ *
  * A two-sided triangle (its material's twosided) is seen from both sides:
  * a light sample that reaches its back carries Le with |cos_l|, and its
  * solid-angle pdf (pf_lights_pdf_at too) divides by |cos_l|, as pbrt-v4's
@@ -57,6 +64,7 @@
 #include "base/sampling.h"
 #include "light/light_impl.h"
 #include "light/spherelight.h"
+#include "light/sphtri.h"
 
 /* The entries the light BVH holds (a position and bounds): triangles,
  * spheres, point and spot lights. */
@@ -603,6 +611,33 @@ int pf_lights_sample_direct(const pf_lights_t *self, const pf_scene_t *scene, pf
     return pf_lights_sample_direct_at(self, scene, x, pf_v3s(0.0f), u, out);
 }
 
+/* A direct-light sample of emitting triangle t, omega its solid angle
+ * from x (within sphtri.h's range), chosen with probability pmf: a
+ * direction uniform in its solid angle (u[1], u[2]), pdf pmf / omega, and
+ * the point where it meets the triangle's plane. 0 when x sees the back of
+ * a one-sided emitter. */
+static int s_tri_spherical(const pf_emit_tri_t *t, pf_vec3 x, double omega, double pmf, const float u[3],
+                           pf_light_conn_t *out)
+{
+    pf_vec3 wi;
+    if (!pf_sphtri_sample(x, t->p0, t->p1, t->p2, u[1], u[2], &wi))
+        return 0;
+    float cos_l = -pf_dot(wi, t->n);
+    if (t->twosided)
+        cos_l = fabsf(cos_l); /* x sees its back, which emits too */
+    if (!(cos_l > 0.0f))
+        return 0;
+    float dist = pf_dot(pf_sub(t->p0, x), t->n) / pf_dot(wi, t->n);
+    if (!(dist > 0.0f) || !isfinite(dist))
+        return 0;
+    float pdf = (float)(pmf / omega);
+    out->wi = wi;
+    out->dist = dist;
+    out->weight = pf_scale(t->le, 1.0f / pdf);
+    out->pdf = pdf;
+    return 1;
+}
+
 int pf_lights_sample_direct_at(const pf_lights_t *self, const pf_scene_t *scene, pf_vec3 x, pf_vec3 n,
                                const float u[3], pf_light_conn_t *out)
 {
@@ -614,6 +649,9 @@ int pf_lights_sample_direct_at(const pf_lights_t *self, const pf_scene_t *scene,
         return 0;
     if (pick < self->narea) { /* an area entry: its record alone */
         const pf_emit_tri_t *t = &self->tris[pick];
+        double omega = pf_sphtri_solid_angle(x, t->p0, t->p1, t->p2);
+        if (omega >= PF_SPHTRI_MIN && omega <= PF_SPHTRI_MAX)
+            return s_tri_spherical(t, x, omega, pmf, u, out);
         pf_vec3 p = pf_emit_tri_point(t, u[1], u[2], NULL), n = t->n;
         pf_vec3 d = pf_sub(p, x);
         float d2 = pf_len2(d);
@@ -722,15 +760,19 @@ float pf_lights_pdf_at(const pf_lights_t *self, const pf_scene_t *scene, pf_vec3
     if (lo == self->narea || self->entries[lo].mesh != geom || self->entries[lo].tri != prim)
         return 0.0f;
     const pf_light_entry_t *e = &self->entries[lo];
-    pf_vec3 n = self->tris[lo].n; /* the normal exactly as pf_lights_surface_point gives it */
+    const pf_emit_tri_t *t = &self->tris[lo];
+    pf_vec3 n = t->n; /* the normal exactly as pf_lights_surface_point gives it */
     pf_vec3 d = pf_sub(p, x);
     float d2 = pf_len2(d);
     if (!(d2 > 0.0f))
         return 0.0f;
     float cos_l = -pf_dot(d, n) / sqrtf(d2);
-    if (self->tris[lo].twosided)
+    if (t->twosided)
         cos_l = fabsf(cos_l); /* as pf_lights_sample_direct_at */
     if (cos_l <= 0.0f)
         return 0.0f;
+    double omega = pf_sphtri_solid_angle(x, t->p0, t->p1, t->p2); /* sampled by solid angle, as there */
+    if (omega >= PF_SPHTRI_MIN && omega <= PF_SPHTRI_MAX)
+        return (float)((double)s_direct_pmf(self, x, nx, lo) / omega);
     return s_direct_pmf(self, x, nx, lo) / e->area * d2 / cos_l;
 }
