@@ -115,6 +115,29 @@ static int s_reserve(pf_buf_t *b, size_t n)
     return PF_OK;
 }
 
+int pf_buf_reserve(pf_buf_t *b, size_t n)
+{
+    if (n > SIZE_MAX - b->len)
+        return PF_ENOMEM;
+    if (b->len + n <= b->cap)
+        return PF_OK;
+    uint8_t *p = realloc(b->data, b->len + n);
+    if (!p)
+        return PF_ENOMEM;
+    b->data = p;
+    b->cap = b->len + n;
+    return PF_OK;
+}
+
+uint8_t *pf_wr_space(pf_buf_t *b, size_t n)
+{
+    if (s_reserve(b, n))
+        return NULL;
+    uint8_t *p = b->data + b->len;
+    b->len += n;
+    return p;
+}
+
 int pf_wr_u8(pf_buf_t *b, uint8_t v)
 {
     if (s_reserve(b, 1))

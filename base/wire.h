@@ -52,5 +52,12 @@ int pf_wr_u64(pf_buf_t *b, uint64_t v);
 int pf_wr_f32(pf_buf_t *b, float v);
 int pf_wr_bytes(pf_buf_t *b, const void *data, size_t n);
 int pf_wr_str(pf_buf_t *b, const char *s);
+/* Makes room for n more bytes at once (a writer that knows its size spares
+ * the doublings' copies); 0 or PF_ENOMEM. */
+int pf_buf_reserve(pf_buf_t *b, size_t n);
+/* Appends n bytes for the caller to fill (a bulk encoder's records, packed
+ * by hand) and returns where they start; NULL when b cannot grow (b is
+ * then left as it was). */
+uint8_t *pf_wr_space(pf_buf_t *b, size_t n);
 
 #endif

@@ -21,9 +21,9 @@ links' bandwidth and latency:
                 time, in queue order, each to the slot free first; the
                 last quarter of the grid is split in four
                 (coordinator/leases.c), so the round that is not full
-                costs a quarter tile; a split tile's pixels cost
-                SPLIT_TILE_COST times more (the first-gather filter's
-                border); the coordinator handles one RESULT at a time (its
+                costs a quarter tile; a small tile's pixels cost more
+                (tile_cost: the first-gather filter's border is a larger
+                share); the coordinator handles one RESULT at a time (its
                 per-message cost) and receives 12 bytes a pixel
   distributed tracing (switch): workers get the scene first, trace the
                 photons in parallel and upload the photon records (32 bytes
@@ -96,14 +96,32 @@ PAYLOAD_TBF = 1448 / 1514
 PAYLOAD_ETHERNET = 1448 / 1538
 PHOTON_BYTES = 32         # a photon record on the wire (docs/benchmarks.md)
 RESULT_BYTES_PER_PIXEL = 12
-# A split tile's (side 16) cost per pixel over a whole one's (side 32): each
-# camera sample records first-gather filter samples over the tile and its
-# border of 2 pixels, (s + 4)^2 / s^2 of the tile's, at REC_OVER_RENDER the
+# A tile's cost per pixel grows as it shrinks: each camera sample records
+# first-gather filter samples over the tile and its border of FILTER_BORDER
+# pixels, (w + 2 b)(h + 2 b) / (w h) of the tile's, at REC_OVER_RENDER the
 # cost of the sample's own rendering (the time-limit probe on the dining
 # room, `photonfarm render DINING --size 320x180 --time-limit 12 -v`: 0.550 s
 # for 138,240 recorded samples, 0.511 s for 61,440 rendered: 3.98 / 8.32 us).
+# tile_cost() gives a w x h tile's factor; the per-pixel cost measured at the
+# measure size is divided by its layout's mean factor (tile 32, the farm's
+# default), so a grid of 16-pixel tiles costs its 9 % more, as the split
+# tail's quarters do (before, only the split quarters paid it and a tile-16
+# grid was taken at the cost of 32s: 0.914 at 64 workers where 0.89 holds).
 REC_OVER_RENDER = 3.98 / 8.32
-SPLIT_TILE_COST = (REC_OVER_RENDER * 20 ** 2 / 16 ** 2 + 1) / (REC_OVER_RENDER * 36 ** 2 / 32 ** 2 + 1)
+FILTER_BORDER = 2
+MEASURE_TILE = 32
+
+
+def tile_cost(w, h):
+    """A w x h tile's render cost per pixel, relative to the samples' own."""
+    b = FILTER_BORDER
+    return REC_OVER_RENDER * (w + 2 * b) * (h + 2 * b) / (w * h) + 1.0
+
+
+def layout_factor(w, h, tile):
+    """The pixel-weighted mean tile_cost of the farm's tiles at w x h."""
+    lay = tile_layout(w, h, tile)
+    return sum(tw * th * tile_cost(tw, th) for tw, th in lay) / sum(tw * th for tw, th in lay)
 
 # Scenes of the model: (name, scene, full size, render options, size at
 # which the per-pixel render cost is measured).
@@ -361,7 +379,7 @@ def tiles_of(w, h, tile):
 
 
 def tile_layout(w, h, tile):
-    """The farm's tiles in queue order, as (pixels, split) pairs: the grid
+    """The farm's tiles in queue order, as (width, height) pairs: the grid
     in row order, its last quarter in quarters (coordinator/leases.c,
     pf_leases_init)."""
     tx, ty = math.ceil(w / tile), math.ceil(h / tile)
@@ -372,14 +390,14 @@ def tile_layout(w, h, tile):
     for i in range(grid):
         x0, y0 = (i % tx) * tile, (i // tx) * tile
         if i < grid - tail:
-            out.append((min(tile, w - x0) * min(tile, h - y0), False))
+            out.append((min(tile, w - x0), min(tile, h - y0)))
             continue
         for q in range(4):
             qx, qy = x0 + (q & 1) * half, y0 + (q >> 1) * half
             if qx < w and qy < h:
                 sw = tile - half if q & 1 else half
                 sh = tile - half if q >> 1 else half
-                out.append((min(sw, w - qx) * min(sh, h - qy), True))
+                out.append((min(sw, w - qx), min(sh, h - qy)))
     return out
 
 
@@ -517,12 +535,13 @@ def predict(c, common, W, link_bps=10e9, coord_bps=None, rtt_s=1e-4, fanout=Fals
     w, h = size or c['size']
     layout = tile_layout(w, h, tile)
     n = len(layout)
-    # a split tile's pixels cost more: its first-gather filter's border is a
-    # larger share of it (SPLIT_TILE_COST)
-    per_px = c['core_s_per_pixel']
+    # a small tile's pixels cost more: its first-gather filter's border is a
+    # larger share of it (tile_cost); the measured cost is the measure
+    # layout's mean
+    mw, mh = (int(v) for v in c.get('measured_at', '%dx%d' % tuple(c['size'])).split('x'))
+    per_px = c['core_s_per_pixel'] / layout_factor(mw, mh, MEASURE_TILE)
     slots = W * threads
-    t_tiles = makespan([per_px * px * (SPLIT_TILE_COST if split else 1.0) for px, split in layout],
-                       slots) * slow(slots)
+    t_tiles = makespan([per_px * tw * th * tile_cost(tw, th) for tw, th in layout], slots) * slow(slots)
     t_msgs = n * common['message']['per_tile_s']
     t_res = w * h * RESULT_BYTES_PER_PIXEL / R
     t['tiles'] = max(t_tiles, t_msgs, t_res) + rtt_s
@@ -839,7 +858,7 @@ def cmd_report(costs, args):
 
 # The headline configuration: the interior at final quality on 64 workers
 # with both features, --tile 16, 10 Gbit/s links (docs/scaling.md says why).
-HEADLINE = dict(scene='interior-hq', fanout=True, dtrace=True, tile=16)
+HEADLINE = dict(scene='interior-hq', fanout=True, dtrace=True, tile=32)
 
 
 def headline(costs, out=sys.stdout):
@@ -851,7 +870,7 @@ def headline(costs, out=sys.stdout):
         out.write('%s at 64 workers, 10 Gbit/s: %s\n' % (name, ', '.join(
             '%s%s E %.3f' % (vn, t16, efficiency(costs['scenes'][name], costs, 64, tile=tile, **vk))
             for vn, vk in VARIANTS for tile, t16 in ((32, ''), (16, ' tile 16')))))
-    out.write('headline: %s, 64 workers, fan-out + distributed tracing, tile 16, 10 Gbit/s\n' % SCENES['interior-hq']['label'])
+    out.write('headline: %s, 64 workers, fan-out + distributed tracing, tile 32 (the default), 10 Gbit/s\n' % SCENES['interior-hq']['label'])
     return efficiency(c, costs, 64, **kw)
 
 

@@ -92,7 +92,14 @@ int pf_mapfile_write(const pf_photon_maps_t *maps, uint64_t scene_hash, uint64_t
 {
     out->len = 0;
     const pf_kdtree_t *trees[S_MAPS] = { maps->global, maps->caustic, maps->irradiance, maps->irradiance_deep };
-    int rc = 0;
+    size_t total = S_HEADER;
+    for (int m = 0; m < S_MAPS; m++) {
+        size_t n = trees[m] ? pf_kdtree_size(trees[m]) : 0;
+        if (n > (SIZE_MAX - total) / S_RECORD)
+            return PF_ENOMEM;
+        total += n * S_RECORD;
+    }
+    int rc = pf_buf_reserve(out, total);
     W(pf_wr_u32(out, PF_MAPFILE_MAGIC));
     W(pf_wr_u16(out, PF_MAPFILE_VERSION));
     W(pf_wr_u16(out, S_RECORD));
@@ -118,16 +125,27 @@ int pf_mapfile_write(const pf_photon_maps_t *maps, uint64_t scene_hash, uint64_t
         W(pf_wr_f32(out, hi.z));
     }
     W(pf_wr_u64(out, 0)); /* the content hash, filled in below */
+    /* The records, packed into space taken once per map (a call per field
+     * made the 32 MB blob of a million photons take 0.3 s). */
     for (int m = 0; m < S_MAPS && rc == 0; m++) {
         size_t n = trees[m] ? pf_kdtree_size(trees[m]) : 0;
         const pf_photon_t *ph = n ? pf_kdtree_photons(trees[m]) : NULL;
-        for (size_t i = 0; i < n && rc == 0; i++) {
-            for (int k = 0; k < 3; k++)
-                W(pf_wr_f32(out, ph[i].pos[k]));
-            for (int k = 0; k < 3; k++)
-                W(pf_wr_f32(out, ph[i].power[k]));
-            W(pf_wr_u32(out, ph[i].dir));
-            W(pf_wr_u32(out, ph[i].normal));
+        uint8_t *q = n ? (n <= SIZE_MAX / S_RECORD ? pf_wr_space(out, n * S_RECORD) : NULL) : out->data;
+        if (!q) {
+            rc = PF_ENOMEM;
+            break;
+        }
+        for (size_t i = 0; i < n; i++) {
+            uint8_t *r = q + i * S_RECORD;
+            for (int k = 0; k < 3; k++) {
+                uint32_t u;
+                memcpy(&u, &ph[i].pos[k], sizeof u);
+                s_put_u32(r + 4 * k, u);
+                memcpy(&u, &ph[i].power[k], sizeof u);
+                s_put_u32(r + 12 + 4 * k, u);
+            }
+            s_put_u32(r + 24, ph[i].dir);
+            s_put_u32(r + 28, ph[i].normal);
         }
     }
     if (rc != 0) {
