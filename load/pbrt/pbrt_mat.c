@@ -15,7 +15,10 @@
  *                       k = 2 sqrt(r) / sqrt(1 - r); alpha from the
  *                       roughness (below); anisotropic u != v: their mean,
  *                       warned
- *   coatedconductor     MIRROR of its conductor; warned
+ *   coatedconductor     CONDUCTOR: the metal under the coat (conductor.eta,
+ *                       conductor.k or reflectance over interface.eta, its
+ *                       conductor.roughness); the coat's reflection left out,
+ *                       warned
  *   dielectric          GLASS ior = eta (a named glass: its index), alpha
  *                       from the roughness (rough glass from 1e-3)
  *   thindielectric      THIN_DIELECTRIC ior = eta
@@ -339,13 +342,25 @@ static int s_conductor(pf_pbrt_t *c, pf_pbrt_mat_t *m, const char *what, int coa
         return rc;
     if (!ok)
         return s_not_renderable(c, m, what, "has textured optical constants");
-    m->m.type = coated ? PF_MAT_MIRROR : PF_MAT_CONDUCTOR;
+    m->m.type = PF_MAT_CONDUCTOR;
     if (coated) {
+        /* The metal under the coat: its optical constants relative to the
+         * coat's index, its own roughness; the coat's reflection is left out
+         * (a few per cent where the metal reflects most). */
+        double ceta;
+        if ((rc = s_eta(c, &m->params, "interface.eta", what, &ceta)) ||
+            (rc = s_alpha_uv(c, &m->params, "conductor.", what, &au, &av)))
+            return rc;
+        if (!m->m.refl_tex) { /* pbrt-v4 divides both forms' constants by the coat's index */
+            m->m.eta = pf_vmax(pf_scale(m->m.eta, (float)(1.0 / ceta)), pf_v3s(1e-4f));
+            m->m.k = pf_scale(m->m.k, (float)(1.0 / ceta));
+        }
         s_use_all(&m->params);
+        m->m.alpha = (float)fmin(0.5 * (au + av), 1.0);
         return pf_pbrt_warn(c, m->loc, "coatedconductor (approximated)",
-                            "%s: rendered as its conductor, a mirror of reflectance (%.3g %.3g %.3g); the coat is "
-                            "left out",
-                            what, m->m.ks.x, m->m.ks.y, m->m.ks.z);
+                            "%s: rendered as the metal under the coat (GGX alpha %.3g, its index relative to the "
+                            "coat's %.3g); the coat's own reflection is left out",
+                            what, (double)m->m.alpha, ceta);
     }
     int rough_tex = 0;
     if ((rc = pf_pbrt_rough_texture(c, &m->params, &m->m, &rough_tex)) || rough_tex)

@@ -1,6 +1,7 @@
-/* test_pbrt_media.c: the pbrt-v4 reader's media (load/pbrt/pbrt_medium.c)
- * and diffuse transmission's textured slots, on small texts made at run
- * time. Run from the repository root (ctest does). */
+/* test_pbrt_media.c: the pbrt-v4 reader's media (load/pbrt/pbrt_medium.c),
+ * diffuse transmission's textured slots and the coated conductor's
+ * approximation, on small texts made at run time. Run from the repository
+ * root (ctest does). */
 #include "base/log.h"
 
 #include "pbrt_text.h"
@@ -93,12 +94,40 @@ static void test_media(void)
     pf_scene_destroy(&s);
 }
 
+/* coatedconductor: the metal under the coat, its constants over the
+ * coat's index (as pbrt-v4 takes them), its own roughness; warned. */
+static void test_coated_conductor(void)
+{
+    pf_error_t err;
+    pf_load_report_t rep;
+    pf_scene_t *s = s_parse(S_HEAD "Material \"coatedconductor\" \"rgb conductor.eta\" [0.3 0.9 1.2]\n"
+                                   "  \"rgb conductor.k\" [3.9 2.4 2.1] \"float conductor.roughness\" 0.04\n"
+                                   "  \"float interface.eta\" 1.5 \"float interface.roughness\" 0\n" S_TRI
+                                   "Material \"coatedconductor\" \"rgb reflectance\" [0.9 0.8 0.7]\n" S_TRI,
+                            0, &rep, &err);
+    CHECK(s != NULL, "%s", err.msg);
+    if (!s)
+        return;
+    const pf_material_t *a = s_mesh_mat(s, 0), *b = s_mesh_mat(s, 1);
+    CHECK(a->type == PF_MAT_CONDUCTOR && s_vnear(a->eta, 0.2f, 0.6f, 0.8f) && s_vnear(a->k, 2.6f, 1.6f, 1.4f) &&
+              s_near(a->alpha, 0.2f),
+          "the metal under the coat: eta %g %g %g, k %g %g %g, alpha %g", a->eta.x, a->eta.y, a->eta.z, a->k.x, a->k.y,
+          a->k.z, a->alpha);
+    float k9 = pf_conductor_k_of_reflectance(0.9f) / 1.5f;
+    CHECK(b->type == PF_MAT_CONDUCTOR && s_vnear(b->eta, 1.0f / 1.5f, 1.0f / 1.5f, 1.0f / 1.5f) && s_near(b->k.x, k9) &&
+              b->alpha == 0.0f,
+          "the reflectance form, over the default coat index 1.5: eta %g, k %g", b->eta.x, b->k.x);
+    CHECK(s_warned(&rep, "coatedconductor (approximated)") == 2, "warned once per use");
+    pf_scene_destroy(&s);
+}
+
 int main(void)
 {
     pf_log_set_level(PF_LOG_ERROR);
     if (!pf_pbrt_text_dir())
         return 1;
     test_media();
+    test_coated_conductor();
     pf_pbrt_text_dir_remove();
     return pf_test_finish();
 }
