@@ -33,24 +33,6 @@ int pf_photon_maps_index(pf_photon_maps_t *maps)
     return rc;
 }
 
-pf_vec3 pf_irradiance_lookup(const pf_kdtree_t *irr, float irr_r2, const pf_accel_t *accel, pf_vec3 p, pf_vec3 nf)
-{
-    pf_knn_t near;
-    if (!irr || !pf_kdtree_nearest_normal(irr, p, nf, PF_NORMAL_AGREE, irr_r2, &near))
-        return pf_v3s(0.0f);
-    const pf_photon_t *q = &pf_kdtree_photons(irr)[near.index];
-    float r = pf_irradiance_radius(q);
-    if (!(near.d2 <= r * r))
-        return pf_v3s(0.0f);
-    float d = sqrtf(near.d2);
-    pf_ray_t ray;
-    float len;
-    if (pf_irradiance_leak_test(q, d, pf_accel_eps(accel)) && pf_irradiance_leak_ray(p, nf, q, d, &ray, &len) &&
-        pf_accel_occluded(accel, &ray, len))
-        return pf_v3s(0.0f);
-    return pf_photon_power(q);
-}
-
 /* An entry as one integer in (d2, index) order, the order of the k nearest: a squared distance is >= 0
  * (or NaN, never returned by a search), so its bits order as it does. */
 static inline uint64_t s_knn_key(const pf_knn_t *e)
@@ -68,6 +50,53 @@ static inline pf_knn_t s_knn_of_key(uint64_t key)
     memcpy(&e.d2, &b, sizeof b);
     return e;
 }
+
+/* Whether irradiance point q at squared distance d2 answers a lookup at p
+ * (face normal nf): p within q's support, and nothing between them. */
+static int s_answers(const pf_photon_t *q, float d2, const pf_accel_t *accel, pf_vec3 p, pf_vec3 nf)
+{
+    float r = pf_irradiance_radius(q);
+    if (!(d2 <= r * r))
+        return 0;
+    float d = sqrtf(d2);
+    pf_ray_t ray;
+    float len;
+    return !(pf_irradiance_leak_test(q, d, pf_accel_eps(accel)) && pf_irradiance_leak_ray(p, nf, q, d, &ray, &len) &&
+             pf_accel_occluded(accel, &ray, len));
+}
+
+/* Where the nearest point does not answer, the next nearest up to this
+ * many are asked, nearest first. */
+#define S_LOOKUP_TRIES 8
+
+pf_vec3 pf_irradiance_lookup(const pf_kdtree_t *irr, float irr_r2, const pf_accel_t *accel, pf_vec3 p, pf_vec3 nf)
+{
+    pf_knn_t near;
+    if (!irr || !pf_kdtree_nearest_normal(irr, p, nf, PF_NORMAL_AGREE, irr_r2, &near))
+        return pf_v3s(0.0f);
+    const pf_photon_t *pts = pf_kdtree_photons(irr);
+    if (s_answers(&pts[near.index], near.d2, accel, p, nf))
+        return pf_photon_power(&pts[near.index]);
+    /* The nearest lies behind something (a chair's leg between the floor
+     * points under a table, where the points are sparse) or its support
+     * stops short: a zero here darkened whole regions of cluttered rooms
+     * by 5 to 25 % at 400k photons. The next nearest that answers, in
+     * (distance, index) order: a pure function of the lookup. */
+    pf_knn_t cand[S_LOOKUP_TRIES];
+    size_t n = pf_kdtree_knn_heap_normal(irr, p, nf, PF_NORMAL_AGREE, S_LOOKUP_TRIES, irr_r2, cand);
+    for (size_t i = 0; i < n; i++) /* sort the few by (d2, index) */
+        for (size_t j = i + 1; j < n; j++)
+            if (s_knn_key(&cand[j]) < s_knn_key(&cand[i])) {
+                pf_knn_t t = cand[i];
+                cand[i] = cand[j];
+                cand[j] = t;
+            }
+    for (size_t i = 0; i < n; i++)
+        if (cand[i].index != near.index && s_answers(&pts[cand[i].index], cand[i].d2, accel, p, nf))
+            return pf_photon_power(&pts[cand[i].index]);
+    return pf_v3s(0.0f);
+}
+
 
 /* The key of rank r (0-based) of keys[0, n), r < n; reorders keys.
  * Quickselect with a branch-free Lomuto partition (the comparisons' outcomes

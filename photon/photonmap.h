@@ -147,10 +147,12 @@ static inline int pf_irradiance_leak_ray(pf_vec3 p, pf_vec3 nf, const pf_photon_
  * precomputed points irr (squared reach irr_r2): that of the nearest point q
  * with an agreeing normal, if p lies within q's support (the disc its
  * estimate averaged over) and q is visible from p (the leak test's ray,
- * where q is not flat); zero otherwise, since then no photon landed near p
- * on its side of any wall. Without the visibility test the final gather
- * reads light through walls (the stress suite's thin wall and closed
- * crate). Safe from any thread once irr is indexed or not. */
+ * where q is not flat); where the nearest does not answer, the next
+ * nearest that does among the 8 nearest (a post or a chair's leg between
+ * p and its nearest point); zero when none does, since then no photon
+ * landed near p on its side of any wall. Without the visibility test the
+ * final gather reads light through walls (the stress suite's thin wall and
+ * closed crate). Safe from any thread once irr is indexed or not. */
 pf_vec3 pf_irradiance_lookup(const pf_kdtree_t *irr, float irr_r2, const pf_accel_t *accel, pf_vec3 p, pf_vec3 nf);
 
 /* The same with a cone filter (Jensen 2001, 7.2.2, k = 1): weight

@@ -442,6 +442,46 @@ static void s_two_sided_sheet(void)
     pf_scene_destroy(&scene);
 }
 
+/* An irradiance lookup whose nearest point stands behind a post (a thin
+ * box 1 high between them) must read the next nearest that it sees, not
+ * zero (where the points are sparse, under a table among chairs' legs,
+ * zeros darkened whole regions); with the post around both points (none
+ * seen) it reads zero. */
+static void s_lookup_behind_post(void)
+{
+    pf_scene_t *scene = pf_scene_create();
+    uint32_t white = stress_material(scene, stress_diffuse("white", 0.5f, 0.0f));
+    pf_test_quad(scene, pf_v3(-2, 0, -2), pf_v3(0, 0, 4), pf_v3(4, 0, 0), white); /* the floor, normal +y */
+    stress_box(scene, pf_v3(0.09f, 0, -0.3f), pf_v3(0.11f, 1, 0.3f), white, 0);  /* the post, across x = 0.1 */
+    stress_point_light(scene, pf_v3(0, 3, 0), 1.0f);
+    pf_error_t err = { { 0 } };
+    CHECK(pf_scene_finalize(scene, &err) == PF_OK, "finalize: %s", err.msg);
+    pf_accel_t *accel = pf_accel_create(scene, &err);
+    CHECK(accel != NULL, "accel: %s", err.msg);
+    if (!accel) {
+        pf_scene_destroy(&scene);
+        return;
+    }
+    const pf_vec3 at[3] = { { 0.2f, 0, 0 }, { -0.25f, 0, 0 }, { -0.6f, 0, 0 } }; /* behind, seen, seen but farther */
+    pf_photon_t *pts = malloc(3 * sizeof *pts);
+    PF_CHECK(pts != NULL);
+    for (int i = 0; i < 3; i++) {
+        float r = 0.8f, v = (float)(i + 1);
+        uint32_t support;
+        memcpy(&support, &r, sizeof support);
+        pts[i] = (pf_photon_t){ { at[i].x, at[i].y, at[i].z }, { v, v, v }, support, pf_oct_encode(pf_v3(0, 1, 0)) };
+    }
+    pf_kdtree_t *irr = pf_kdtree_build(&pts, 3);
+    PF_CHECK(irr != NULL);
+    pf_vec3 e = pf_irradiance_lookup(irr, 4.0f, accel, pf_v3(0, 0, 0), pf_v3(0, 1, 0));
+    CHECK(e.x == 2.0f, "behind a post: the lookup read %g, not the nearest point it sees (2)", (double)e.x);
+    e = pf_irradiance_lookup(irr, 4.0f, accel, pf_v3(0.3f, 0, 0), pf_v3(0, 1, 0));
+    CHECK(e.x == 1.0f, "in front of the post: the nearest point (1), read %g", (double)e.x);
+    pf_kdtree_destroy(&irr);
+    pf_accel_destroy(&accel);
+    pf_scene_destroy(&scene);
+}
+
 /* The camera inside a closed, opaque box; the lights outside. */
 static void s_camera_in_box(void)
 {
@@ -481,6 +521,7 @@ void stress_test_geometry(void)
     s_thin_wall(2e-6f);
     s_thin_wall_gap();
     s_two_sided_sheet();
+    s_lookup_behind_post();
     s_camera_in_box();
 }
 
