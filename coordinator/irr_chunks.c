@@ -369,9 +369,8 @@ static int s_validate(const pf_irq_t *q, uint32_t i, const pf_msg_photons_t *p, 
         pf_msg_photon_t m;
         pf_msg_photon_get(p, k, &m);
         const pf_photon_t *at = &g[(first + k) * stride];
-        uint32_t u = m.dir & ~PF_IRRADIANCE_FLAT_BIT;
-        float r;
-        memcpy(&r, &u, sizeof r);
+        const pf_photon_t support = { .dir = m.dir };
+        float r = pf_irradiance_radius(&support);
         if (memcmp(m.pos, at->pos, sizeof m.pos) != 0 || m.normal != at->normal || !(r <= q->max_r)) {
             snprintf(why, why_len, "IRR_POINTS: chunk %" PRIu32 " point %" PRIu32 " is not at its photon, or its "
                      "support radius %g is out of range", i, k, (double)r);

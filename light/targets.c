@@ -20,8 +20,8 @@ int pf_specular_targets(const pf_scene_t *scene, pf_target_t **out)
         pf_vec3 lo = pf_v3s(FLT_MAX), hi = pf_v3s(-FLT_MAX);
         for (size_t i = 0; i < mesh->ntris; i++) {
             pf_mat_type ty = scene->mats[mesh->mat[i]].type;
-            if (ty == PF_MAT_DIFFUSE || ty == PF_MAT_COATED || ty == PF_MAT_DIFFUSE_TRANSMISSION)
-                continue; /* coated and diffuse transmission are diffuse for the caustic map (photon/trace.c) */
+            if (ty == PF_MAT_DIFFUSE || ty == PF_MAT_DIFFUSE_TRANSMISSION)
+                continue; /* diffuse transmission is diffuse for the caustic map; a coat is C (photon/trace.c) */
             for (int k = 0; k < 3; k++) {
                 lo = pf_vmin(lo, mesh->pos[mesh->idx[3 * i + k]]);
                 hi = pf_vmax(hi, mesh->pos[mesh->idx[3 * i + k]]);
@@ -36,7 +36,7 @@ int pf_specular_targets(const pf_scene_t *scene, pf_target_t **out)
     for (size_t i = 0; i < scene->nspheres; i++) {
         const pf_sphere_t *sp = &scene->spheres[i];
         pf_mat_type ty = scene->mats[sp->mat].type;
-        if (ty != PF_MAT_DIFFUSE && ty != PF_MAT_COATED && ty != PF_MAT_DIFFUSE_TRANSMISSION)
+        if (ty != PF_MAT_DIFFUSE && ty != PF_MAT_DIFFUSE_TRANSMISSION)
             t[n++] = (pf_target_t){ sp->center, sp->radius * 1.001f };
     }
     if (n == 0) {

@@ -153,13 +153,11 @@ int pf_irradiance_points(const pf_kdtree_t *global, const pf_irr_params_t *par, 
             float rs = sqrtf(shrink2 < 1.0f ? r2 * shrink2 : r2);
             /* the disc's share off the surface, where another surface comes
              * within the disc itself (fewer than k found: none asked) */
+            float lum = pf_luminance(e), share = lum > 0.0f ? pf_luminance(scratch->direct) / lum : 0.0f;
             if (accel && !flat && r2 < max_r2 && !pf_accel_only_plane(accel, pf_photon_pos(p), nrm, rs))
                 e = pf_scale(e, 1.0f / s_coverage(accel, pf_photon_pos(p), nrm, rs));
-            uint32_t support;
-            memcpy(&support, &r, sizeof support);
-            if (flat)
-                support |= PF_IRRADIANCE_FLAT_BIT;
-            pts[i] = (pf_photon_t){ { p->pos[0], p->pos[1], p->pos[2] }, { e.x, e.y, e.z }, support, p->normal };
+            pts[i] = (pf_photon_t){ { p->pos[0], p->pos[1], p->pos[2] }, { e.x, e.y, e.z },
+                                    pf_irradiance_pack(r, flat, share), p->normal };
         }
         free(scratch);
         pf_pm_visible_scratch_free(&vis);

@@ -25,12 +25,17 @@ typedef struct pf_photon_maps {
     float global_r2;          /* max squared search radius of global estimates */
     float caustic_r2;         /* max squared search radius of caustic estimates */
     float irradiance_r2;      /* max squared distance to an irradiance point */
+    /* Gather rays shorter than this end at a near surface, whose points'
+     * blur (their support) would show: twice the median support of the
+     * irradiance points (pf_photon_maps_index derives it, not in the blob;
+     * 0 without points). */
+    float near_r;
 } pf_photon_maps_t;
 
-/* Readies the maps for rendering: builds the irradiance tree's
- * nearest-point grid (pf_kdtree_index_nearest), which makes direct lookups
- * several times faster without changing a result. 0 or PF_ENOMEM (the maps
- * stay usable, only slower). The render's frame (render/frame.h) calls it,
+/* Readies the maps for rendering: sets near_r, and builds the irradiance
+ * tree's nearest-point grid (pf_kdtree_index_nearest), which makes direct
+ * lookups several times faster without changing a result. 0 or PF_ENOMEM
+ * (the maps stay usable, only slower). The render's frame (render/frame.h) calls it,
  * then builds the irradiance texels (irrtex.h) over the maps. */
 int pf_photon_maps_index(pf_photon_maps_t *maps);
 
@@ -56,6 +61,10 @@ typedef struct pf_pm_scratch {
      * as the full one, for a uniform density of each). Whoever allocates
      * the scratch sets it. */
     unsigned bounce_limit;
+    /* Out: the part of the last estimate (pf_pm_estimate's family,
+     * pf_pm_irradiance_seen) its photons at their first hit (bounce 0, the
+     * light's direct) carried. */
+    pf_vec3 direct;
 } pf_pm_scratch_t;
 
 /* Whether photon p counts under bounce_limit (pf_pm_scratch_t). */
@@ -94,15 +103,38 @@ pf_vec3 pf_pm_irradiance_hint(const pf_kdtree_t *map, pf_vec3 x, pf_vec3 n, int 
                               pf_pm_scratch_t *scratch, float *r2_out);
 
 /* The radius of the disc an irradiance point's estimate averaged over (its
- * support), kept in the point's otherwise unused direction field; the sign
- * bit there is the point's flat flag (pf_irradiance_flat). */
+ * support), kept in the point's otherwise unused direction field: a float
+ * whose sign bit is the point's flat flag (pf_irradiance_flat) and whose 8
+ * lowest mantissa bits hold its direct share (below); the radius is the
+ * float with those cleared (rounded down by at most 2^-15 of itself). */
 #define PF_IRRADIANCE_FLAT_BIT 0x80000000u
+#define PF_IRRADIANCE_SHARE_BITS 0xFFu
 static inline float pf_irradiance_radius(const pf_photon_t *p)
 {
-    uint32_t u = p->dir & ~PF_IRRADIANCE_FLAT_BIT;
+    uint32_t u = p->dir & ~(PF_IRRADIANCE_FLAT_BIT | PF_IRRADIANCE_SHARE_BITS);
     float r;
     memcpy(&r, &u, sizeof r);
     return r;
+}
+
+/* The share of a point's irradiance (by luminance) its photons at their
+ * first hit carried, the light's direct part, in [0, 1] to 1/255: a near
+ * gather ray's end samples its direct light itself and takes the rest,
+ * E (1 - share), from the point (render.c). */
+static inline float pf_irradiance_direct_share(const pf_photon_t *p)
+{
+    return (float)(p->dir & PF_IRRADIANCE_SHARE_BITS) * (1.0f / 255.0f);
+}
+
+/* The direction field of an irradiance point: support radius r (>= 0), the
+ * flat flag and the direct share, as the accessors above read them. */
+static inline uint32_t pf_irradiance_pack(float r, int flat, float share)
+{
+    uint32_t u;
+    memcpy(&u, &r, sizeof u);
+    float q = share * 255.0f + 0.5f;
+    u = (u & ~PF_IRRADIANCE_SHARE_BITS) | (uint32_t)(q > 255.0f ? 255.0f : q > 0.0f ? q : 0.0f);
+    return flat ? u | PF_IRRADIANCE_FLAT_BIT : u;
 }
 
 /* Set when no surface but the point's own plane comes within
@@ -154,6 +186,9 @@ static inline int pf_irradiance_leak_ray(pf_vec3 p, pf_vec3 nf, const pf_photon_
  * final gather reads light through walls (the stress suite's thin wall and
  * closed crate). Safe from any thread once irr is indexed or not. */
 pf_vec3 pf_irradiance_lookup(const pf_kdtree_t *irr, float irr_r2, const pf_accel_t *accel, pf_vec3 p, pf_vec3 nf);
+/* The point that lookup reads (NULL: none answers). */
+const pf_photon_t *pf_irradiance_lookup_point(const pf_kdtree_t *irr, float irr_r2, const pf_accel_t *accel, pf_vec3 p,
+                                              pf_vec3 nf);
 
 /* The same with a cone filter (Jensen 2001, 7.2.2, k = 1): weight
  * 1 - d / r, normalized by 1 - 2 / 3 over the disc, which sharpens caustics.

@@ -9,11 +9,12 @@
  * mirror tinted by its Fresnel), with Russian roulette on the sampled weight
  * f cos / pdf; no photon is stored there, and for the caustic map they count
  * as specular (caustic paths are L (S|C)+ D, C a conductor, rough or not).
- * Coated surfaces store photons and scatter them by their BSDF (diffuse
- * for the caustic map); rough glass splits about a sampled microfacet
+ * Coated surfaces store photons and scatter them by their BSDF; for the
+ * caustic map the base is diffuse and the coat C (a caustic photon goes on
+ * off the coat lobe alone); rough glass splits about a sampled microfacet
  * normal (specular for the caustic map, as rough conductors).
  * Caustic photons: a separate emission aimed at the bounding spheres of the
- * mirror, glass and conductor geometry (pf_lights_emit_targeted: the flux divides by the
+ * mirror, glass, conductor and coated geometry (pf_lights_emit_targeted: the flux divides by the
  * cone-mixture pdf, so the estimate stays unbiased while no photon is spent
  * on directions that cannot reach a specular surface); only paths L S+ D are
  * stored, at the first non-specular hit, after which the photon ends. With no
@@ -91,13 +92,9 @@ static int s_conductor(const pf_material_t *m, pf_vec3 nf, pf_vec3 ns, pf_vec3 w
     return 1;
 }
 
-/* A photon off a coated surface (stored there as at a diffuse one): its
- * BSDF sampled (coat lobe or base, material/coated.h), then Russian
- * roulette on the weight f cos / pdf. A coated surface counts as diffuse
- * for the caustic map, whatever lobe reflected the photon: the camera's
- * gather rays end there (render.c) and estimate the coat's reflection from
- * the irradiance, so its caustics (L C D) are the indirect term's. 0 when
- * the photon ends here. */
+/* A global photon off a coated surface (stored there as at a diffuse one):
+ * its BSDF sampled (coat lobe or base, material/coated.h), then Russian
+ * roulette on the weight f cos / pdf. 0 when the photon ends here. */
 static int s_coated(const pf_material_t *m, pf_vec3 nf, pf_vec3 ns, pf_vec3 wi, float u0, float u1, float u2,
                     float u3, pf_vec3 *wo, pf_vec3 *power)
 {
@@ -110,6 +107,23 @@ static int s_coated(const pf_material_t *m, pf_vec3 nf, pf_vec3 ns, pf_vec3 wi, 
     if (!(p > 0.0f) || u3 >= p)
         return 0;
     *power = pf_mul(*power, pf_scale(w, 1.0f / p));
+    return 1;
+}
+
+/* A caustic photon off a coated surface's coat (C for the caustic map:
+ * the camera's gather rays follow the coat as they follow a conductor,
+ * render.c), the base's share left to the global map: the coat lobe
+ * sampled alone, Russian roulette on its weight. 0 when the photon ends. */
+static int s_coat_only(const pf_material_t *m, pf_vec3 nf, pf_vec3 ns, pf_vec3 wi, float u1, float u2, float u3,
+                       pf_vec3 *wo, pf_vec3 *power)
+{
+    float w, pdf;
+    if (!pf_coated_sample_coat(m, ns, wi, u1, u2, wo, &w, &pdf) || pf_dot(*wo, nf) <= 0.0f)
+        return 0;
+    float p = fminf(1.0f, w);
+    if (!(p > 0.0f) || u3 >= p)
+        return 0;
+    *power = pf_scale(*power, w / p);
     return 1;
 }
 
@@ -178,8 +192,12 @@ static int s_trace(const s_ctx *c, uint64_t seed, uint64_t index, uint64_t emitt
                     return PF_ENOMEM;
                 buf->indirect += !specular_only;
             }
-            if (caustic)
+            if (caustic && !(m->type == PF_MAT_COATED && s_coat_only(m, nf, ns, wi, u1, u2, u0, &wo, &power)))
                 return 0;
+            if (caustic) { /* off the coat: still L (S|C)+ */
+                ray = pf_spawn_ray(&hit, wo);
+                continue;
+            }
             float pd = pf_maxc(m->kd), ps = pf_maxc(m->ks), sum = pd + ps;
             if (sum > 1.0f) {
                 pd /= sum;

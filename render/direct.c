@@ -119,6 +119,30 @@ pf_vec3 pf_direct_light(const pf_render_ctx_t *c, pf_rng_t *rng, const pf_hit_t 
     return sum;
 }
 
+/* The radiance a near gather ray's end y (material m, reflectance kd as
+ * the lookup would apply it) leaves towards wo: its direct light sampled
+ * (as at a diffuse point of albedo kd) and the rest of its irradiance from
+ * its point, E (1 - the point's direct share). A point's irradiance is its
+ * photons' over the disc of its support, and from nearer than that the
+ * blur shows: the sunlit stripe on a chair's shell, seen from its rim a
+ * few centimetres away, read a tenth of its irradiance at 1M photons
+ * (bench/pathref's one-bounce light there). */
+pf_vec3 pf_direct_near_end(const pf_render_ctx_t *c, pf_rng_t *rng, const pf_hit_t *h, const pf_material_t *m,
+                           pf_vec3 kd, pf_vec3 nf, pf_vec3 ns, pf_vec3 wo)
+{
+    pf_material_t md = *m;
+    md.type = PF_MAT_DIFFUSE;
+    md.kd = kd;
+    md.ks = pf_v3s(0.0f);
+    pf_vec3 l = pf_direct_light(c, rng, h, &md, nf, ns, wo, 0, 0);
+    const pf_photon_maps_t *pm = c->maps;
+    const pf_photon_t *q = pf_irradiance_lookup_point(pm->irradiance, pm->irradiance_r2, c->accel, h->p, nf);
+    if (!q)
+        return l;
+    pf_vec3 e = pf_scale(pf_photon_power(q), 1.0f - pf_irradiance_direct_share(q));
+    return pf_add(l, pf_scale(pf_mul(kd, e), PF_INV_PI));
+}
+
 /* The sky a gather ray sees straight from its diffuse point, weighted by MIS
  * against that point's light samples (s_connect's other half). */
 pf_vec3 pf_direct_gather_sky(const pf_render_ctx_t *c, pf_vec3 ns, int ng, pf_vec3 d)

@@ -29,6 +29,13 @@ float pf_mis_power(float na, float a, float nb, float b);
 pf_vec3 pf_direct_light(const pf_render_ctx_t *c, pf_rng_t *rng, const pf_hit_t *h, const pf_material_t *m, pf_vec3 nf,
                         pf_vec3 ns, pf_vec3 wo, int recurse, int ng);
 
+/* The radiance a gather ray's end h, nearer than the irradiance points'
+ * blur (maps->near_r), leaves towards wo, read as a diffuse surface of
+ * reflectance kd: its direct light sampled, the rest of its irradiance
+ * from the point the lookup reads (its direct share taken out). */
+pf_vec3 pf_direct_near_end(const pf_render_ctx_t *c, pf_rng_t *rng, const pf_hit_t *h, const pf_material_t *m,
+                           pf_vec3 kd, pf_vec3 nf, pf_vec3 ns, pf_vec3 wo);
+
 /* How many of a diffuse point's ng gather rays count the sky they see
  * straight from it: ng when the point is plainly diffuse and both direct
  * light and the gather are rendered, else 0 (the sky is then light

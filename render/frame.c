@@ -118,6 +118,8 @@ void pf_frame_ready(pf_frame_t *f)
         return;
     if (pf_photon_maps_index(&f->maps) != PF_OK)
         pf_warn("out of memory for the irradiance lookup grid: rendering goes on, slower");
+    pf_debug("gather rays shorter than %.4g (twice the irradiance points' median support) light their ends themselves",
+             (double)f->maps.near_r);
     if (!f->texels) {
         f->texels = pf_irrtex_create(f->scene, f->accel, f->maps.irradiance, f->maps.irradiance_r2);
         if (!f->texels && pf_kdtree_size(f->maps.irradiance))

@@ -63,7 +63,11 @@
  *
  * A coated x (material/coated.h) is D for its base (scaled by its
  * directional albedo) and adds its coat lobe as the conductor row does
- * (smooth: a mirror, as S); gather rays end at it as at D. Rough glass is
+ * (smooth: a mirror, as S). A gather ray follows a coat as C with the
+ * coat's share of the choice (pf_coated_coat_prob), else ends at the base
+ * as at D (the caustic map takes coats as C). A gather ray shorter than
+ * the maps' near_r samples its end's direct light and reads only the rest
+ * of the point's irradiance (pf_direct_near_end): the points' blur shows. Rough glass is
  * S taken as a random branch (a microfacet normal drawn per hit).
  *
  * Distant and infinite lights (the sun and a constant or image-based sky) fit the same
@@ -224,6 +228,22 @@ static void s_gather_trace(s_state *st, pf_ray_t ray, s_gather_end *end)
         pf_vec3 wo = pf_neg(ray.d);
         pf_vec3 nf = pf_face_forward(h.ng, wo);
         pf_vec3 ns = pf_dot(h.ng, nf) > 0.0f ? h.ns : pf_neg(h.ns);
+        /* A coat is C: the ray follows it with its albedo's share of the
+         * choice (the caustic map holds L C D), else ends at the base. */
+        float base_w = 1.0f;
+        if (pf_mat_coated(m) && pf_mat_nonspecular(m) && pf_dot(wo, ns) > 0.0f) {
+            float pc = pf_coated_coat_prob(m, pf_dot(wo, ns));
+            if (s_u(st) < pc) {
+                pf_vec3 wi;
+                float w, pdf, u1 = s_u(st), u2 = s_u(st);
+                if (!pf_coated_sample_coat(m, ns, wo, u1, u2, &wi, &w, &pdf) || pf_dot(wi, nf) <= 0.0f)
+                    return;
+                thr = pf_scale(thr, w / pc);
+                ray = pf_spawn_ray(&h, wi);
+                continue;
+            }
+            base_w = 1.0f / (1.0f - pc);
+        }
         if (m->type == PF_MAT_DIFFUSE || pf_mat_coated(m) || pf_mat_difftrans(m)) {
             int events = st->events + 1 + depth; /* the gather ray's end's photons make the rest */
             if (!pf_mat_nonspecular(m) || !pf_depth_allows(&c->settings, events))
@@ -238,7 +258,7 @@ static void s_gather_trace(s_state *st, pf_ray_t ray, s_gather_end *end)
                 return;
             }
             if (!pf_depth_precomputed(&c->settings, events)) { /* the deep points, else the map itself */
-                pf_vec3 kd = pf_mat_coated(m) ? pf_coated_kd(m, pf_dot(wo, ns), 1) : m->kd;
+                pf_vec3 kd = pf_mat_coated(m) ? pf_scale(pf_coated_kd(m, pf_dot(wo, ns), 0), base_w) : m->kd;
                 const pf_photon_maps_t *pm = c->maps;
                 pf_vec3 e = pf_depth_deep(&c->settings, pm, events)
                                 ? pf_irradiance_lookup(pm->irradiance_deep, pm->irradiance_r2, c->accel, h.p, nf)
@@ -253,12 +273,17 @@ static void s_gather_trace(s_state *st, pf_ray_t ray, s_gather_end *end)
                 end->value = pf_mul(thr, l);
                 return;
             }
+            pf_vec3 kd = pf_mat_coated(m) ? pf_scale(pf_coated_kd(m, pf_dot(wo, ns), 0), base_w) : m->kd;
+            if (h.t < c->maps->near_r) {
+                end->value = pf_mul(thr, pf_direct_near_end(c, &st->rng, &h, m, kd, nf, ns, wo));
+                return;
+            }
             end->texel = c->texels ? pf_irrtex_find(c->texels, &h, nf) : PF_IRRTEX_NONE;
             end->lookup = 1;
             end->h = h;
             end->nf = nf;
             end->thr = thr;
-            end->kd = pf_mat_coated(m) ? pf_coated_kd(m, pf_dot(wo, ns), 1) : m->kd;
+            end->kd = kd;
             return;
         }
         pf_vec3 wi;

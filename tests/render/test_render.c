@@ -391,6 +391,8 @@ static void s_test_texels(const char *path)
     pf_render_ctx_t ctx;
     pf_render_ctx_init(&ctx, &f.fr, &f.s);
     PF_CHECK(pf_image_alloc(&direct_img, f.s.width, f.s.height) == PF_OK);
+    /* the maps readied as pf_frame_ready will (near_r), but no texels yet */
+    PF_CHECK(pf_photon_maps_index(&f.fr.maps) == PF_OK);
     pf_render_image(&ctx, &direct_img, 2, 16, NULL, NULL);
     pf_frame_ready(&f.fr);
     CHECK(f.fr.texels != NULL, "%s: no irradiance texels", path);
