@@ -34,8 +34,10 @@
 /* 2: the split axes moved from a byte array after the photons into the
  * photons' normal field. 3: a photon's dir holds 12+12 direction bits and
  * its bounce count (photon.h). 4: the deep gathers' irradiance points
- * travel as a fourth map (workers derived them, each a whole precompute). */
-#define PF_MAPFILE_VERSION 4
+ * travel as a fourth map (workers derived them, each a whole precompute).
+ * 5: an irradiance point's support field carries its direct share in its
+ * 8 lowest bits (photonmap.h). */
+#define PF_MAPFILE_VERSION 5
 
 /* Serializes maps into out (reset first). 0 or PF_ENOMEM. */
 int pf_mapfile_write(const pf_photon_maps_t *maps, uint64_t scene_hash, uint64_t settings_hash, pf_buf_t *out);
